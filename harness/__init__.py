@@ -1,0 +1,62 @@
+"""denoise-harness: a plugin-based benchmark harness for real-time Monte Carlo denoisers.
+
+This module is the public API. Plugins import only names from here.
+"""
+
+from harness.backends import available_backends, cuda_available, cuda_simulated
+from harness.buffers import (
+    CHANNELS,
+    ChannelError,
+    Frame,
+    FrameMeta,
+    NonFiniteError,
+    expected_shape,
+)
+from harness.hookspecs import hookimpl
+from harness.plugins import PluginConflictError, Registry, load_plugins
+from harness.sampling import Sampler
+from harness.scene import (
+    CameraPath,
+    Environment,
+    Material,
+    Scene,
+    SceneObject,
+    Sun,
+    TriangleSoup,
+    read_texture,
+    srgb_to_linear,
+)
+from harness.specs import FilterSpec, MetricSpec, RendererSpec, SceneSpec
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CHANNELS",
+    "CameraPath",
+    "ChannelError",
+    "Environment",
+    "FilterSpec",
+    "Frame",
+    "FrameMeta",
+    "Material",
+    "MetricSpec",
+    "NonFiniteError",
+    "PluginConflictError",
+    "Registry",
+    "RendererSpec",
+    "Sampler",
+    "Scene",
+    "SceneObject",
+    "SceneSpec",
+    "Sun",
+    "TriangleSoup",
+    "__version__",
+    "available_backends",
+    "cuda_available",
+    "cuda_simulated",
+    "expected_shape",
+    "hookimpl",
+    "load_plugins",
+    "read_texture",
+    "srgb_to_linear",
+]

@@ -1,0 +1,31 @@
+"""Writing pictures of results: tone-mapped 8-bit PNGs through OpenImageIO."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def tonemap(image: np.ndarray, exposure: float = 1.0) -> np.ndarray:
+    """Linear HDR radiance to 8-bit sRGB (clamp, then the sRGB curve)."""
+    x = np.clip(np.nan_to_num(np.asarray(image, np.float64) * exposure), 0.0, 1.0)
+    x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+    return np.round(x * 255.0).astype(np.uint8)
+
+
+def write_png(path: str | Path, image: np.ndarray, exposure: float = 1.0) -> Path:
+    """Write an (H, W, 3) linear image as a PNG; returns the path."""
+    import OpenImageIO as oiio
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pixels = tonemap(image, exposure)
+    out = oiio.ImageOutput.create(str(path))
+    if out is None:
+        raise OSError(f"cannot write {path}: {oiio.geterror()}")
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], pixels.shape[2], "uint8")
+    out.open(str(path), spec)
+    out.write_image(pixels)
+    out.close()
+    return path

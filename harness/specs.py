@@ -1,0 +1,241 @@
+"""Plugin specs: what each kind of plugin declares to the harness.
+
+Every spec is a small frozen dataclass with a unique ``name``, a ``version`` (part of every
+cache key and of the run manifest) and a ``factory`` that builds the working object.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+from harness.buffers import CHANNELS
+
+KINDS = ("filter", "renderer", "metric", "scene")
+BACKENDS = ("cpu", "cuda")
+
+
+def _frozen_mapping(value: Mapping[str, Any] | None) -> Mapping[str, Any]:
+    return MappingProxyType(dict(value or {}))
+
+
+def _check_channels(owner: str, names) -> frozenset[str]:
+    names = frozenset(names)
+    unknown = sorted(names - set(CHANNELS))
+    if unknown:
+        raise ValueError(f"{owner}: unknown channel(s) {unknown}; known channels are {sorted(CHANNELS)}")
+    return names
+
+
+@dataclass(frozen=True)
+class FilterSpec:
+    """Declaration of a reconstruction filter.
+
+    Parameters
+    ----------
+    name : str
+        Unique plugin name, used on the command line and in result tables.
+    version : str
+        Version of the implementation; changes invalidate stored results.
+    factory : callable
+        ``factory(backend="cpu", **params)`` returns a filter object with ``reset()`` and
+        ``__call__(frame, sampler=None) -> ndarray (H, W, 3) float32``.
+    requires : iterable of str
+        Frame channels the filter reads (``color`` is always implied). A job whose renderer
+        cannot provide one of them is skipped with that reason.
+    optional : iterable of str
+        Channels the filter uses when the renderer provides them (e.g. ``direct``/``indirect``).
+        The filter sees only ``requires`` and the ``optional`` channels that were rendered.
+    temporal : bool
+        True if the filter keeps history between frames of a sequence.
+    backends : tuple of str
+        Subset of ``("cpu", "cuda")``.
+    params : mapping
+        Parameter names and their defaults.
+    adaptive : bool
+        True if the filter asks the renderer for more samples through a ``Sampler``.
+    presets : mapping
+        Named parameter sets (``{"paper": {...}, "falcor": {...}}``).
+    description : str
+        One line shown by ``denoise-bench plugins``.
+    xfail_checks : mapping of str to str
+        Conformance checks (``harness.testing.checks`` function names) this filter knowingly
+        fails, each with the reason; they run as strict expected failures.
+    trainer : callable, optional
+        For learned filters: ``trainer(seed=0, output=None, quick=False) -> pathlib.Path``
+        trains the model and writes its weights (``denoise-bench train NAME``).
+
+    Notes
+    -----
+    After each call a filter may set ``filter.stage_ms`` (dict of stage name to milliseconds of
+    the last call); ``denoise-bench bench`` prints it as a per-stage breakdown.
+    """
+
+    name: str
+    version: str
+    factory: Callable[..., Any]
+    requires: frozenset = frozenset({"color"})
+    optional: frozenset = frozenset()
+    temporal: bool = False
+    backends: tuple = ("cpu",)
+    params: Mapping[str, Any] = field(default_factory=dict)
+    adaptive: bool = False
+    presets: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    description: str = ""
+    xfail_checks: Mapping[str, str] = field(default_factory=dict)
+    trainer: Callable[..., Any] | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "requires", _check_channels(f"filter {self.name!r}", set(self.requires) | {"color"}))
+        object.__setattr__(self, "optional", _check_channels(f"filter {self.name!r}", self.optional) - self.requires)
+        bad = [b for b in self.backends if b not in BACKENDS]
+        if bad or not self.backends:
+            raise ValueError(
+                f"filter {self.name!r}: backends must be a non-empty subset of {BACKENDS}, got {self.backends}"
+            )
+        object.__setattr__(self, "backends", tuple(self.backends))
+        object.__setattr__(self, "params", _frozen_mapping(self.params))
+        object.__setattr__(self, "xfail_checks", _frozen_mapping(self.xfail_checks))
+        object.__setattr__(self, "presets", _frozen_mapping({k: _frozen_mapping(v) for k, v in self.presets.items()}))
+
+    def declarations(self) -> dict:
+        """What the spec declares, as plain JSON-able data."""
+        return {
+            "requires": sorted(self.requires),
+            "optional": sorted(self.optional),
+            "temporal": self.temporal,
+            "backends": list(self.backends),
+            "params": dict(self.params),
+            "adaptive": self.adaptive,
+            "presets": sorted(self.presets),
+            "trainable": self.trainer is not None,
+        }
+
+
+@dataclass(frozen=True)
+class RendererSpec:
+    """Declaration of a renderer.
+
+    Parameters
+    ----------
+    name, version, factory
+        As for :class:`FilterSpec`; ``factory(**settings)`` returns an object with
+        ``render(scene, frame_index, *, spp, seed, channels, resolution) -> Frame``,
+        ``reference(scene, frame_index, *, spp, seed, resolution) -> ndarray`` (when
+        ``references``) and ``sampler(scene, frame_index, *, spp, seed, channels, resolution)
+        -> Sampler`` (when ``adaptive``), and ``settings() -> dict`` (part of cache keys).
+    provides : iterable of str
+        Channels the renderer can produce.
+    references : bool
+        Whether it renders converged references.
+    adaptive : bool
+        Whether it serves adaptive sampling through :class:`harness.Sampler`.
+    scene_kinds : iterable of str
+        Kinds of :class:`harness.Scene` it understands (``"procedural"``, ``"mesh"``).
+    reference_spp : int
+        Default samples per pixel of its references.
+    """
+
+    name: str
+    version: str
+    factory: Callable[..., Any]
+    provides: frozenset = frozenset()
+    references: bool = True
+    adaptive: bool = False
+    scene_kinds: frozenset = frozenset({"mesh"})
+    reference_spp: int = 4096
+    description: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
+        object.__setattr__(self, "scene_kinds", frozenset(self.scene_kinds))
+
+    def declarations(self) -> dict:
+        return {
+            "provides": sorted(self.provides),
+            "references": self.references,
+            "adaptive": self.adaptive,
+            "scene_kinds": sorted(self.scene_kinds),
+            "reference_spp": self.reference_spp,
+        }
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """Declaration of an error metric.
+
+    Parameters
+    ----------
+    name, version, factory
+        ``factory()`` returns a callable. A ``"frame"`` metric is called as
+        ``metric(output, reference) -> float`` on (H, W, 3) float32 linear images; a
+        ``"sequence"`` metric as ``metric(outputs, references) -> float`` on lists of them.
+    higher_is_better : bool
+        Direction of the score (used by the leaderboard).
+    kind : {"frame", "sequence"}
+    min_frames : int
+        Fewest frames the metric can score (a sequence metric needs at least 2).
+    """
+
+    name: str
+    version: str
+    factory: Callable[..., Any]
+    higher_is_better: bool = False
+    kind: str = "frame"
+    min_frames: int = 1
+    description: str = ""
+
+    def __post_init__(self):
+        if self.kind not in ("frame", "sequence"):
+            raise ValueError(f"metric {self.name!r}: kind must be 'frame' or 'sequence', got {self.kind!r}")
+
+    def declarations(self) -> dict:
+        return {"higher_is_better": self.higher_is_better, "kind": self.kind, "min_frames": self.min_frames}
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Declaration of a scene.
+
+    Parameters
+    ----------
+    name, version, factory
+        ``factory()`` returns a :class:`harness.Scene`.
+    tags : iterable of str
+        E.g. ``static``/``dynamic``, ``glossy``, ``foliage``, ``emissive``, ``sky``.
+    frames : int
+        Number of frames of the sequence.
+    resolution : (int, int)
+        Default (width, height).
+    kind : str
+        ``"procedural"`` (synthetic patterns) or ``"mesh"`` (geometry for raster/path tracing).
+    suite : bool
+        Whether the scene belongs to the built-in default suite of ``denoise-bench run``.
+    """
+
+    name: str
+    version: str
+    factory: Callable[..., Any]
+    tags: frozenset = frozenset()
+    frames: int = 1
+    resolution: tuple = (256, 256)
+    kind: str = "mesh"
+    suite: bool = True
+    description: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "tags", frozenset(self.tags))
+        object.__setattr__(self, "resolution", tuple(int(v) for v in self.resolution))
+        if self.frames < 1:
+            raise ValueError(f"scene {self.name!r}: frames must be >= 1, got {self.frames}")
+
+    def declarations(self) -> dict:
+        return {
+            "tags": sorted(self.tags),
+            "frames": self.frames,
+            "resolution": list(self.resolution),
+            "kind": self.kind,
+            "suite": self.suite,
+        }

@@ -1,0 +1,60 @@
+"""``opencv_jbf``: OpenCV's joint bilateral filter guided by the normals (a speed/quality peer).
+
+``cv2.ximgproc.jointBilateralFilter`` with a 9x9 window (d=9), the shading normal (mapped to
+[0, 1]) as the guide, and the noisy colour as the source. Needs opencv-contrib (the ``peers``
+extra); the plugin is listed as broken where it is not installed.
+"""
+
+import cv2  # noqa: E402  (import failure marks this plugin broken, as intended)
+import numpy as np
+
+from harness import FilterSpec, hookimpl
+
+PARAMS = {"diameter": 9, "sigma_color": 0.2, "sigma_space": 3.0}
+
+
+class JointBilateral:
+    """Joint bilateral filter of ``color`` guided by ``normal``.
+
+    Parameters
+    ----------
+    backend : {"cpu"}
+    diameter : int
+        Window diameter in pixels.
+    sigma_color : float
+        Range sigma on the guide (normals in [0, 1]).
+    sigma_space : float
+        Spatial sigma in pixels.
+    """
+
+    def __init__(self, backend="cpu", diameter=9, sigma_color=0.2, sigma_space=3.0):
+        if backend != "cpu":
+            raise ValueError(f"opencv_jbf: unsupported backend {backend!r}")
+        self.diameter, self.sigma_color, self.sigma_space = int(diameter), float(sigma_color), float(sigma_space)
+
+    def reset(self):
+        """Stateless."""
+
+    def __call__(self, frame, sampler=None):
+        color = frame["color"]
+        # OpenCV works in float32: keep huge values finite by filtering a scaled copy
+        scale = float(np.max(np.abs(color))) if color.size else 0.0
+        scale = scale if np.isfinite(scale) and scale > 0 else 1.0
+        src = np.ascontiguousarray(color / np.float32(scale), np.float32)
+        guide = np.ascontiguousarray(frame["normal"] * 0.5 + 0.5, np.float32)
+        out = cv2.ximgproc.jointBilateralFilter(guide, src, self.diameter, self.sigma_color, self.sigma_space)
+        return np.ascontiguousarray(out.reshape(color.shape) * np.float32(scale), np.float32)
+
+
+@hookimpl
+def register_filters():
+    return [
+        FilterSpec(
+            name="opencv_jbf",
+            version=f"1.0+opencv-{cv2.__version__}",
+            factory=JointBilateral,
+            requires={"color", "normal"},
+            params=PARAMS,
+            description="OpenCV ximgproc joint bilateral filter, 9x9, normal guide (peer)",
+        )
+    ]

@@ -1,0 +1,49 @@
+"""``ssim``: scikit-image's structural similarity on tone-mapped images.
+
+Images are clamped to [0, 1] and sRGB-encoded (see :mod:`plugins.metrics.tonemap`), then
+``skimage.metrics.structural_similarity`` runs with ``data_range=1``, ``channel_axis=2`` and
+Wang et al.'s Gaussian window (``gaussian_weights=True, sigma=1.5,
+use_sample_covariance=False``, hence an 11x11 window). Images smaller than 11x11 use the
+largest odd uniform window that fits; below 3x3, ``1 - MSE`` of the encoded images.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness import MetricSpec, hookimpl
+
+from .tonemap import to_display
+
+
+def ssim(output: np.ndarray, reference: np.ndarray) -> float:
+    """Mean SSIM in [-1, 1] (1 = identical)."""
+    from skimage.metrics import structural_similarity
+
+    a, b = to_display(output), to_display(reference)
+    side = min(a.shape[0], a.shape[1])
+    if side >= 11:  # room for the 11x11 Gaussian window (sigma 1.5, truncated at 3.5 sigma)
+        return float(
+            structural_similarity(
+                a, b, data_range=1.0, channel_axis=2, gaussian_weights=True, sigma=1.5, use_sample_covariance=False
+            )
+        )
+    if side >= 3:  # small images: the largest odd uniform window that fits
+        win = side if side % 2 else side - 1
+        return float(
+            structural_similarity(a, b, data_range=1.0, channel_axis=2, win_size=win, use_sample_covariance=False)
+        )
+    return float(1.0 - np.mean((a - b) ** 2))
+
+
+@hookimpl
+def register_metrics():
+    return [
+        MetricSpec(
+            name="ssim",
+            version="1.0",
+            factory=lambda: ssim,
+            higher_is_better=True,
+            description="scikit-image SSIM on clamped sRGB-encoded images",
+        )
+    ]
