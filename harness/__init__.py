@@ -13,6 +13,7 @@ from harness.buffers import (
     expected_shape,
 )
 from harness.hookspecs import hookimpl
+from harness.images import encode_srgb, write_png
 from harness.plugins import PluginConflictError, Registry, load_plugins
 from harness.sampling import Sampler
 from harness.scene import (
@@ -54,9 +55,11 @@ __all__ = [
     "available_backends",
     "cuda_available",
     "cuda_simulated",
+    "encode_srgb",
     "expected_shape",
     "hookimpl",
     "load_plugins",
     "read_texture",
     "srgb_to_linear",
+    "write_png",
 ]

@@ -159,6 +159,13 @@ def build_parser() -> argparse.ArgumentParser:
     show = sub.add_parser("show", help="summary table and leaderboard of a stored run")
     show.add_argument("dir", type=Path)
     show.add_argument("--all", action="store_true", help="print every row, not the summary")
+    show.add_argument(
+        "--markdown",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="also write the summary and leaderboard as markdown to FILE",
+    )
     _add_common(show)
 
     render = sub.add_parser("render", help="render references into the cache (chunked, resumable)")

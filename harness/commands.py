@@ -10,7 +10,15 @@ import pandas as pd
 
 from harness.cli import make_cache, scene_selection
 from harness.plan import make_plan
-from harness.results import format_table, leaderboard, make_manifest, read_results, summary, write_manifest
+from harness.results import (
+    format_table,
+    leaderboard,
+    make_manifest,
+    read_results,
+    summary,
+    to_markdown,
+    write_manifest,
+)
 from harness.runner import Runner, RunOptions
 
 
@@ -118,12 +126,20 @@ def cmd_show(registry, args) -> int:
     else:
         _print_summary(df, registry)
     manifest = args.dir / "manifest.json"
+    provenance = ""
     if manifest.exists():
         m = json.loads(manifest.read_text())
-        print(
-            f"\nharness {m.get('harness_version')} at {m.get('git_commit') or 'unknown commit'}; "
+        provenance = (
+            f"harness {m.get('harness_version')} at {m.get('git_commit') or 'unknown commit'}; "
             f"{m['machine'].get('cpu')} ({m['machine'].get('numba_threads')} threads); created {m.get('created')}"
         )
+        print(f"\n{provenance}")
+    if args.markdown is not None:
+        ok = df[df.status == "ok"]
+        board = leaderboard(df, registry.metrics)
+        text = ["# Leaderboard", "", to_markdown(board), "## Per scene", "", to_markdown(summary(ok)), provenance, ""]
+        args.markdown.write_text("\n".join(text))
+        print(f"markdown written to {args.markdown}")
     return 0
 
 

@@ -7,11 +7,15 @@ from pathlib import Path
 import numpy as np
 
 
+def encode_srgb(image: np.ndarray) -> np.ndarray:
+    """Linear radiance clamped to [0, 1] and sRGB-encoded, float64 (the display mapping of SSIM and FLIP)."""
+    x = np.clip(np.nan_to_num(np.asarray(image, np.float64)), 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
 def tonemap(image: np.ndarray, exposure: float = 1.0) -> np.ndarray:
-    """Linear HDR radiance to 8-bit sRGB (clamp, then the sRGB curve)."""
-    x = np.clip(np.nan_to_num(np.asarray(image, np.float64) * exposure), 0.0, 1.0)
-    x = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-    return np.round(x * 255.0).astype(np.uint8)
+    """Linear HDR radiance to 8-bit sRGB (exposure, clamp, then the sRGB curve)."""
+    return np.round(encode_srgb(np.asarray(image, np.float64) * exposure) * 255.0).astype(np.uint8)
 
 
 def write_png(path: str | Path, image: np.ndarray, exposure: float = 1.0) -> Path:

@@ -198,7 +198,7 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict) -> pd.DataFrame:
 def _git_commit() -> str:
     try:
         out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5, check=False)
-        commit = out.stdout.strip()
+        commit = out.stdout.strip() if out.returncode == 0 else ""
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--untracked-files=no"],
             capture_output=True,
@@ -291,3 +291,18 @@ def format_table(df: pd.DataFrame, floatfmt: str = "{:.4g}") -> str:
                 lambda v: "-" if v is None or (isinstance(v, float) and np.isnan(v)) else floatfmt.format(v)
             )
     return shown.to_string(index=False)
+
+
+def to_markdown(df: pd.DataFrame, floatfmt: str = "{:.4g}") -> str:
+    """A GitHub-flavoured markdown table."""
+    if df.empty:
+        return "(no rows)\n"
+
+    def cell(v):
+        if isinstance(v, float):
+            return "-" if np.isnan(v) else floatfmt.format(v)
+        return str(v).replace("|", "\\|")
+
+    lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]
+    return "\n".join(lines) + "\n"

@@ -9,17 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import MetricSpec, hookimpl
-
-from .tonemap import to_display
+from harness import MetricSpec, encode_srgb, hookimpl
 
 
 def flip(output: np.ndarray, reference: np.ndarray) -> float:
     """Mean LDR-FLIP error in [0, 1]."""
     import flip_evaluator
 
-    ref = np.ascontiguousarray(to_display(reference), np.float32)
-    out = np.ascontiguousarray(to_display(output), np.float32)
+    ref = np.ascontiguousarray(encode_srgb(reference), np.float32)
+    out = np.ascontiguousarray(encode_srgb(output), np.float32)
     result = flip_evaluator.evaluate(ref, out, "LDR", inputsRGB=True, applyMagma=False)
     return float(result[1])
 

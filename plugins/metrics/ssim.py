@@ -1,6 +1,6 @@
 """``ssim``: scikit-image's structural similarity on tone-mapped images.
 
-Images are clamped to [0, 1] and sRGB-encoded (see :mod:`plugins.metrics.tonemap`), then
+Images are clamped to [0, 1] and sRGB-encoded (:func:`harness.encode_srgb`), then
 ``skimage.metrics.structural_similarity`` runs with ``data_range=1``, ``channel_axis=2`` and
 Wang et al.'s Gaussian window (``gaussian_weights=True, sigma=1.5,
 use_sample_covariance=False``, hence an 11x11 window). Images smaller than 11x11 use the
@@ -11,16 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import MetricSpec, hookimpl
-
-from .tonemap import to_display
+from harness import MetricSpec, encode_srgb, hookimpl
 
 
 def ssim(output: np.ndarray, reference: np.ndarray) -> float:
     """Mean SSIM in [-1, 1] (1 = identical)."""
     from skimage.metrics import structural_similarity
 
-    a, b = to_display(output), to_display(reference)
+    a, b = encode_srgb(output), encode_srgb(reference)
     side = min(a.shape[0], a.shape[1])
     if side >= 11:  # room for the 11x11 Gaussian window (sigma 1.5, truncated at 3.5 sigma)
         return float(
