@@ -6,7 +6,7 @@ import pytest
 from harness import load_plugins
 from harness.cache import Cache
 from harness.plan import make_plan
-from harness.runner import RunOptions, Runner
+from harness.runner import Runner, RunOptions
 from tests.test_run import bench
 
 

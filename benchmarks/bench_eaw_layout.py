@@ -1,0 +1,95 @@
+"""Layout and skipping measurements of the ``eaw`` CPU backend.
+
+Times the five à-trous passes alone (the filter's inner part) on one ``synthetic-edges`` frame
+(sky on top) for several row strides of the padded planes, and with / without skipping the
+pixels that have nothing to filter. Variants are interleaved round by round, so that a change
+of machine load hits all of them alike; the table gives min and median of wall-clock ms per
+frame and of process CPU ms (both threads together).
+
+Usage::
+
+    python benchmarks/bench_eaw_layout.py [--resolution 1280x720] [--rounds 7]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+from numba import get_num_threads
+
+from harness import load_plugins
+from plugins.filters.eaw import cpu
+from plugins.filters.eaw.filter import frame_scales, frame_state
+from plugins.filters.eaw.params import EAWParams, b3_kernel
+
+
+def prepare(frame, params, stride, skip):
+    """Packed buffers, active runs and state for one frame."""
+    state = frame_state(frame)
+    if not skip:
+        state[:] = cpu.ACTIVE  # every pixel filtered (background too): timing only
+    color, normal, position = frame["color"], frame["normal"], frame["position"]
+    scale, origin, unit = frame_scales(color, position, frame_state(frame), params)
+    buf = cpu.Buffers(frame.height, frame.width, params.halo(), stride)
+    cpu.pack(color, normal, position, frame_state(frame), 1.0 / scale, origin, 1.0 / unit,
+             buf.halo, buf.stride, buf.color[0], buf.color[1], buf.guide)
+    return buf, (*cpu.active_runs(state), np.any(state != cpu.BACKGROUND, axis=1)), state
+
+
+def passes(buf, runs, coefficients, taps, color, out):
+    """All iterations, the last one writing ``out`` as the filter does."""
+    src, dst = buf.color
+    last = coefficients.shape[0] - 1
+    for i in range(last + 1):
+        a_c, a_n, a_x = (np.float32(v) for v in coefficients[i])
+        cpu.atrous_pass(src, dst, buf.guide, *runs, buf.halo, buf.stride, 2**i, a_c, a_n, a_x, taps,
+                        get_num_threads(), i == last, color, out, 1.0, 1.0)
+        src, dst = dst, src
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--resolution", default="1280x720")
+    ap.add_argument("--rounds", type=int, default=7)
+    args = ap.parse_args()
+    w, h = (int(v) for v in args.resolution.split("x"))
+    reg = load_plugins()
+    renderer = reg.renderers["synthetic"].factory()
+    scene = reg.scenes["synthetic-edges"].factory()
+    frame = renderer.render(scene, 0, spp=1, seed=0, channels=frozenset({"color", "normal", "position"}),
+                            resolution=(w, h))
+    params = EAWParams()
+    halo = params.halo()
+    taps, coefficients = b3_kernel(), params.coefficients()
+    tight = w + 2 * halo
+    variants = {
+        f"stride {cpu.padded_stride(w, halo)} (odd x 16, default), skip": (None, True),
+        f"stride {tight} (no padding), skip": (tight, True),
+        f"stride {tight + (-tight) % 512} (multiple of 2 KiB), skip": (tight + (-tight) % 512, True),
+        f"stride {cpu.padded_stride(w, halo)}, no skip": (None, False),
+    }
+    prepared = {name: prepare(frame, params, *v) for name, v in variants.items()}
+    color = frame["color"]
+    out = color.copy()
+    for buf, runs, _ in prepared.values():
+        passes(buf, runs, coefficients, taps, color, out)  # compile / warm up
+    wall = {name: [] for name in variants}
+    proc = {name: [] for name in variants}
+    for _ in range(args.rounds):
+        for name, (buf, runs, _) in prepared.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            passes(buf, runs, coefficients, taps, color, out)
+            wall[name].append((time.perf_counter() - t0) * 1e3)
+            proc[name].append((time.process_time() - c0) * 1e3)
+    active = np.mean(prepared[next(iter(prepared))][2] == cpu.ACTIVE)
+    print(f"{w}x{h}, {params.iterations} passes, {get_num_threads()} threads, active pixels {active:.1%}")
+    print(f"{'variant':48s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
+    for name in variants:
+        print(f"{name:48s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
+              f"{min(proc[name]):9.1f} {np.median(proc[name]):9.1f}")
+
+
+if __name__ == "__main__":
+    main()

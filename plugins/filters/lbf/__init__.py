@@ -1,0 +1,37 @@
+"""The ``lbf`` filter plugin: a learned per-pixel cross-bilateral filter (Kalantari et al. 2015)."""
+
+from harness import FilterSpec, hookimpl
+
+from .denoiser import LBFFilter
+
+VERSION = "1.0"
+PARAMS = {"radius": 5, "weights": None, "visibility": "auto"}
+
+
+def train_lbf(seed: int = 0, output=None, quick: bool = False):
+    """Train LBF and write a weights file (``denoise-bench train lbf``).
+
+    See :func:`plugins.filters.lbf.train.train`.
+    """
+    from .train import train as _train
+
+    return _train(seed=seed, output=output, quick=quick)
+
+
+@hookimpl
+def register_filters():
+    return [
+        FilterSpec(
+            name="lbf",
+            version=VERSION,
+            factory=LBFFilter,
+            requires={"color", "normal", "albedo", "position", "variance"},
+            optional={"visibility", "spp"},
+            temporal=False,
+            backends=("cpu", "cuda"),
+            params=PARAMS,
+            presets={"paper-window": {"radius": 27}, "small": {"radius": 3}},
+            description="learned filter parameters: an MLP predicts per-pixel bilateral bandwidths",
+            trainer=train_lbf,
+        )
+    ]

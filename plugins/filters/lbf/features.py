@@ -1,0 +1,309 @@
+"""LBF feature extraction on the CPU (Numba).
+
+Primary features (compared by the filter): world position normalised by the frame's scene
+scale (3), shading normal (3), albedo (3) and direct-light visibility (1). When the frame has no
+``visibility`` channel the stand-in is the geometry-coverage mask (1 on surfaces, 0 on the
+background), which carries the silhouette but no shadow information.
+
+Secondary features (the network's 36 inputs, :data:`FEATURE_NAMES`), per group (colour,
+position, normal, albedo, visibility): standard deviation over 7x7 and 3x3 blocks, mean
+absolute deviation in 3x3, gradient magnitude, and a robust noise estimate (median over 3x3 of
+the absolute Haar HH coefficient / 0.6745); 7x7 means and pixel values of colour, albedo and
+visibility; the colour's deviation over samples, its 7x7 mean and its ratio to the 7x7 block
+deviation; 1/spp; the 7x7 foreground fraction. The colour signal is ``log1p(color)`` so that
+fireflies do not dominate the statistics; its deviation over samples is the delta-method
+``sqrt(mean_ch variance / (1 + color)^2)``.
+
+"Over samples" statistics use what a frame carries: the ``variance`` channel for the colour.
+A frame whose ``variance`` is zero everywhere carries no variance (a 1-spp path tracer cannot
+estimate it); then the variance of the pixel mean is estimated spatially, as the colour's
+variance over the clamped 5x5 window (:func:`.kernels.variance_estimate_px`), and that estimate
+stands in for the channel everywhere (features, filter).
+The G-buffer comes from a pinhole camera with one primary hit per pixel, so the deviation of the
+geometric features over samples is zero; those features are not inputs, and the filter's
+feature denominators ``max(1e-4, var_i(f))`` equal the floor 1e-4 (Kalantari et al. 2015).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from . import kernels as K
+
+GROUPS = ("color", "position", "normal", "albedo", "visibility")
+
+#: names of the 36 network inputs, in order (stored in the weights file and checked on load)
+FEATURE_NAMES = tuple(
+    [f"std7_{g}" for g in GROUPS]
+    + [f"std3_{g}" for g in GROUPS]
+    + [f"mad3_{g}" for g in GROUPS]
+    + [f"grad_{g}" for g in GROUPS]
+    + [f"noise_{g}" for g in GROUPS]
+    + ["mean7_color", "mean7_albedo", "mean7_visibility"]
+    + ["pixel_color", "pixel_albedo", "pixel_visibility"]
+    + ["sample_std_color", "mean7_sample_std_color", "sample_to_block_std_color"]
+    + ["inv_spp", "mean7_foreground"]
+)
+assert len(FEATURE_NAMES) == K.N_FEATURES
+
+#: the floor of the filter's feature denominators max(floor, var_i(f))
+FEATURE_VAR_FLOOR = 1e-4
+
+_signals_px = njit(cache=True)(K.signals_px)
+_haar_px = njit(cache=True)(K.haar_px)
+_box_rows_px = njit(cache=True)(K.box_rows_px)
+_combine_px = njit(cache=True)(K.combine_px)
+_color_rows_px = njit(cache=True)(K.color_rows_px)
+_variance_estimate_px = njit(cache=True)(K.variance_estimate_px)
+
+
+@dataclass
+class Inputs:
+    """The frame channels LBF reads, as contiguous arrays (see :func:`gather_inputs`)."""
+
+    color: np.ndarray
+    variance: np.ndarray
+    position: np.ndarray
+    normal: np.ndarray
+    albedo: np.ndarray
+    vis: np.ndarray
+    has_vis: bool
+    spp: np.ndarray
+    has_spp: bool
+    estimate_variance: bool
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.color.shape[:2]
+
+
+def gather_inputs(frame, visibility: str = "auto") -> Inputs:
+    """Collect the channels of ``frame`` that LBF reads.
+
+    Parameters
+    ----------
+    frame : harness.Frame
+        Needs ``color``, ``variance``, ``position``, ``normal``, ``albedo``; ``visibility`` and
+        ``spp`` are used when present.
+    visibility : {"auto", "standin"}
+        ``auto`` uses the ``visibility`` channel when the frame has one, else the stand-in (the
+        foreground mask); ``standin`` always uses the stand-in.
+
+    Returns
+    -------
+    Inputs
+    """
+    if visibility not in ("auto", "standin"):
+        raise ValueError(f"lbf: visibility must be 'auto' or 'standin', got {visibility!r}")
+
+    def arr(name, dtype=np.float32):
+        return _readonly(np.ascontiguousarray(frame[name], dtype=dtype))
+
+    has_vis = visibility == "auto" and "visibility" in frame
+    has_spp = "spp" in frame
+    variance = arr("variance")
+    return Inputs(
+        color=arr("color"),
+        variance=variance,
+        position=arr("position"),
+        normal=arr("normal"),
+        albedo=arr("albedo"),
+        vis=arr("visibility") if has_vis else _readonly(np.zeros((1, 1), np.float32)),
+        has_vis=has_vis,
+        spp=arr("spp", np.int32) if has_spp else _readonly(np.ones((1, 1), np.int32)),
+        has_spp=has_spp,
+        estimate_variance=not bool(np.any(variance > 0)),
+    )
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    """A read-only view: frames hold read-only arrays, and one array type means one compilation."""
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
+@njit(parallel=True, cache=True)
+def _position_rows(position, normal, rows):
+    h, w, _ = position.shape
+    for i in prange(h):
+        n = 0.0
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for j in range(w):
+            if normal[i, j, 0] != 0.0 or normal[i, j, 1] != 0.0 or normal[i, j, 2] != 0.0:
+                n += 1.0
+                s0 += position[i, j, 0]
+                s1 += position[i, j, 1]
+                s2 += position[i, j, 2]
+        rows[i, 0] = n
+        rows[i, 1] = s0
+        rows[i, 2] = s1
+        rows[i, 3] = s2
+
+
+@njit(parallel=True, cache=True)
+def _position_spread_rows(position, normal, mu, rows):
+    h, w, _ = position.shape
+    for i in prange(h):
+        s = 0.0
+        for j in range(w):
+            if normal[i, j, 0] != 0.0 or normal[i, j, 1] != 0.0 or normal[i, j, 2] != 0.0:
+                for ch in range(3):
+                    d = position[i, j, ch] - mu[ch]
+                    s += d * d
+        rows[i] = s
+
+
+def position_stats(position: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, float]:
+    """Mean and scale of the foreground positions of a frame.
+
+    Parameters
+    ----------
+    position, normal : ndarray (H, W, 3) float32
+        Foreground pixels are those with a non-zero normal.
+
+    Returns
+    -------
+    mu : ndarray (3,) float64
+        Mean foreground position (zero without foreground).
+    scale : float
+        Root-mean-square distance of foreground positions from ``mu`` (1 when that is zero or
+        there is no foreground). Positions are compared as ``(p - mu) / scale``.
+    """
+    h = position.shape[0]
+    rows = np.zeros((h, 4))
+    _position_rows(position, normal, rows)
+    tot = rows.sum(axis=0)
+    if tot[0] <= 0:
+        return np.zeros(3), 1.0
+    mu = tot[1:] / tot[0]
+    spread = np.zeros(h)
+    _position_spread_rows(position, normal, mu, spread)
+    scale = float(np.sqrt(spread.sum() / tot[0]))
+    if not np.isfinite(scale) or scale <= 1e-12:
+        scale = 1.0
+    return mu, scale
+
+
+@njit(parallel=True, cache=True)
+def _signals_cpu(color, variance, position, normal, albedo, vis, has_vis, spp, has_spp,
+                 mu0, mu1, mu2, inv_scale, sig, aux):
+    h, w, _ = color.shape
+    for i in prange(h):
+        for j in range(w):
+            _signals_px(i, j, color, variance, position, normal, albedo, vis, has_vis, spp,
+                        has_spp, mu0, mu1, mu2, inv_scale, sig, aux)
+
+
+@njit(parallel=True, cache=True)
+def _haar_cpu(sig, hh):
+    h, w, _ = sig.shape
+    for i in prange(h):
+        for j in range(w):
+            _haar_px(i, j, sig, hh)
+
+
+@njit(parallel=True, cache=True)
+def _box_rows_cpu(sig, aux, r, n_aux, dst):
+    h, w, _ = sig.shape
+    for i in prange(h):
+        for j in range(w):
+            _box_rows_px(i, j, sig, aux, r, n_aux, dst)
+
+
+@njit(parallel=True, cache=True)
+def _combine_cpu(sig, aux, hh, r7, r3, out):
+    h, w, _ = sig.shape
+    for i in prange(h):
+        col7 = np.empty(K.N_BOX7)
+        col3 = np.empty(K.N_BOX3)
+        med = np.empty(9)
+        for j in range(w):
+            _combine_px(i, j, sig, aux, hh, r7, r3, out, col7, col3, med)
+
+
+@njit(parallel=True, cache=True)
+def _color_rows_cpu(color, r, dst):
+    h, w, _ = color.shape
+    for i in prange(h):
+        for j in range(w):
+            _color_rows_px(i, j, color, r, dst)
+
+
+@njit(parallel=True, cache=True)
+def _variance_estimate_cpu(rows, r, out):
+    h, w, _ = rows.shape
+    for i in prange(h):
+        for j in range(w):
+            _variance_estimate_px(i, j, rows, r, out)
+
+
+def scratch(work: dict | None, name: str, shape: tuple, dtype) -> np.ndarray:
+    """An uninitialised array, reused from ``work`` (a dict kept by the caller) when it fits.
+
+    Reusing the large intermediate buffers between frames of the same size saves their
+    allocation and first-touch page faults (hundreds of MB at 1280x720).
+    """
+    if work is None:
+        return np.empty(shape, dtype)
+    a = work.get(name)
+    if a is None or a.shape != shape or a.dtype != dtype:
+        a = work[name] = np.empty(shape, dtype)
+    return a
+
+
+def effective_variance(inputs: Inputs, work: dict | None = None) -> np.ndarray:
+    """The frame's variance, or its spatial estimate when the frame carries none (H, W, 3)."""
+    if not inputs.estimate_variance:
+        return inputs.variance
+    h, w = inputs.shape
+    rows = scratch(work, "color_rows", (h, w, 6), np.float64)
+    _color_rows_cpu(inputs.color, K.VAR_RADIUS, rows)
+    out = scratch(work, "variance", (h, w, 3), np.float32)
+    _variance_estimate_cpu(rows, K.VAR_RADIUS, out)
+    return _readonly(out)
+
+
+def extract_features(inputs: Inputs, work: dict | None = None
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Signals and secondary features of a frame, on the CPU.
+
+    Parameters
+    ----------
+    inputs : Inputs
+        From :func:`gather_inputs`.
+    work : dict, optional
+        Buffers reused between calls (see :func:`scratch`); the returned arrays live in it and
+        are overwritten by the next call with the same ``work``.
+
+    Returns
+    -------
+    variance : ndarray (H, W, 3) float32
+        The variance the filter uses (:func:`effective_variance`).
+    sig : ndarray (H, W, 13) float32
+        Signal channels; 3-12 are the primary features (see :mod:`.kernels`).
+    features : ndarray (H, W, 36) float32
+        Secondary features in the order of :data:`FEATURE_NAMES`, not yet z-normalised.
+    """
+    h, w = inputs.shape
+    variance = effective_variance(inputs, work)
+    mu, scale = position_stats(inputs.position, inputs.normal)
+    sig = scratch(work, "sig", (h, w, K.N_SIG), np.float32)
+    aux = scratch(work, "aux", (h, w, 3), np.float32)
+    _signals_cpu(inputs.color, variance, inputs.position, inputs.normal, inputs.albedo,
+                 inputs.vis, inputs.has_vis, inputs.spp, inputs.has_spp,
+                 float(mu[0]), float(mu[1]), float(mu[2]), 1.0 / scale, sig, aux)
+    hh = scratch(work, "haar", (h, w, 5), np.float32)
+    _haar_cpu(sig, hh)
+    r7 = scratch(work, "rows7", (h, w, K.N_BOX7), np.float64)
+    _box_rows_cpu(sig, aux, 3, 2, r7)
+    r3 = scratch(work, "rows3", (h, w, K.N_BOX3), np.float64)
+    _box_rows_cpu(sig, aux, 1, 0, r3)
+    feat = scratch(work, "features", (h, w, K.N_FEATURES), np.float32)
+    _combine_cpu(sig, aux, hh, r7, r3, feat)
+    return variance, sig, feat

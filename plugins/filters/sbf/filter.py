@@ -1,0 +1,102 @@
+"""The SBF filter object: fixed mode (filter the given frame) and adaptive mode (spend samples)."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .adaptive import allocate, sampling_weight, split_budget
+from .params import SBFParams
+from .pipeline import kernels, run_sbf
+
+
+class SBFFilter:
+    """SURE-based filter selection (Li, Wu & Chuang 2012) with optional adaptive sampling.
+
+    Parameters
+    ----------
+    backend : {"cpu", "cuda"}
+    **params
+        See :class:`.params.SBFParams`; an unknown name raises ``TypeError`` naming it.
+
+    Attributes
+    ----------
+    stage_ms : dict
+        Milliseconds per stage of the last call (summed over passes in adaptive mode).
+    samples_added : int
+        Extra samples requested from the sampler in the last call (0 in fixed mode).
+    last_mode : str
+        The mode the last call ran in: ``adaptive`` needs a sampler, and falls back to
+        ``fixed`` (filtering the given frame) when called with ``sampler=None``.
+    last_result : SBFResult
+        The final pass of the last call (candidates, SURE maps, selection).
+    """
+
+    def __init__(self, backend: str = "cpu", **params):
+        unknown = sorted(set(params) - set(SBFParams.__dataclass_fields__))
+        if unknown:
+            raise TypeError(f"sbf: unknown parameter(s) {unknown}")
+        kernels(backend)  # fails early on a bad backend name or a missing numba.cuda
+        self.backend = backend
+        self.params = SBFParams(**params)
+        self.stage_ms: dict = {}
+        self.samples_added = 0
+        self.last_mode = self.params.mode
+        self.last_result = None
+
+    def reset(self) -> None:
+        """SBF keeps no history."""
+
+    def __call__(self, frame, sampler=None) -> np.ndarray:
+        if self.params.mode == "adaptive" and sampler is not None:
+            return self._adaptive(frame, sampler)
+        self.last_mode = "fixed"
+        self.samples_added = 0
+        self.last_result = run_sbf(frame, self.params, self.backend)
+        self.stage_ms = dict(self.last_result.stage_ms)
+        return self.last_result.output
+
+    def _adaptive(self, frame, sampler) -> np.ndarray:
+        """Filter, add samples where ``minSURE / luminance^2`` is large, repeat; filter again.
+
+        The sampler's frame supplies colour, variance and ``spp``; the guide features are taken
+        from ``frame`` when the sampler's frame lacks them.
+        """
+        p = self.params
+        self.last_mode = "adaptive"
+        self.samples_added = 0
+        current = sampler.frame
+        if current.shape != frame.shape:
+            raise ValueError(f"sbf: sampler frame is {current.shape}, frame is {frame.shape}")
+        guides = {n: frame[n] for n in ("normal", "albedo", "depth") if n not in current}
+        current = current.replace(**guides) if guides else current
+        totals: dict = {}
+        budget = int(round(p.extra_spp * frame.height * frame.width))
+        for part in split_budget(budget, p.passes):
+            result = run_sbf(current, p, self.backend)
+            _add_stages(totals, result.stage_ms)
+            t0 = time.perf_counter_ns()
+            spp = current["spp"].astype(np.int64)
+            room = (np.maximum(p.max_spp_per_pixel - spp, 0) if p.max_spp_per_pixel > 0
+                    else np.full(frame.shape, part, np.int64))
+            noisy = (result.variance > 0).any(axis=0)
+            room = room * noisy if noisy.any() else room  # noise-free pixels need no samples
+            minimum = 1 if part >= int(np.count_nonzero(room)) else 0
+            spp_map = allocate(sampling_weight(result.min_sure, result.output), part, room, minimum)
+            _add_stages(totals, {"allocate": (time.perf_counter_ns() - t0) / 1e6})
+            t0 = time.perf_counter_ns()
+            added = sampler.add_samples(spp_map.astype(np.int32))
+            _add_stages(totals, {"add_samples": (time.perf_counter_ns() - t0) / 1e6})
+            self.samples_added += int(spp_map.sum())
+            guides = {n: current[n] for n in ("normal", "albedo", "depth") if n not in added}
+            current = added.replace(**guides) if guides else added
+        self.last_result = run_sbf(current, p, self.backend)
+        _add_stages(totals, self.last_result.stage_ms)
+        self.stage_ms = totals
+        return self.last_result.output
+
+
+def _add_stages(totals: dict, stages: dict) -> None:
+    for name, ms in stages.items():
+        totals[name] = totals.get(name, 0.0) + ms

@@ -1,0 +1,36 @@
+"""The ``svgf`` filter: spatiotemporal variance-guided filtering (Schied et al., HPG 2017).
+
+Albedo demodulation, temporal reprojection and accumulation with motion vectors, temporal (or
+short-history spatial) luminance variance, and 5 variance-guided à-trous iterations. Backends:
+``cpu`` (Numba, parallel) and ``cuda`` (``numba.cuda``).
+"""
+
+from harness import FilterSpec, hookimpl
+
+from .params import PAPER, PRESETS
+from .pipeline import SVGF
+
+VERSION = "1.0"
+
+
+def make_filter(backend: str = "cpu", **params) -> SVGF:
+    """Build an :class:`SVGF` filter (``backend`` ``"cpu"`` or ``"cuda"``)."""
+    return SVGF(backend=backend, **params)
+
+
+@hookimpl
+def register_filters():
+    return [
+        FilterSpec(
+            name="svgf",
+            version=VERSION,
+            factory=make_filter,
+            requires={"color", "albedo", "normal", "depth", "object_id", "motion"},
+            optional={"direct", "indirect"},
+            temporal=True,
+            backends=("cpu", "cuda"),
+            params=PAPER,
+            presets=PRESETS,
+            description="spatiotemporal variance-guided filtering (Schied et al. 2017)",
+        )
+    ]

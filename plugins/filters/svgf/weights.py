@@ -1,0 +1,121 @@
+"""Scalar helpers shared by every stage: luminance, kernel taps and edge-stopping weights.
+
+All are ``@njit`` scalar functions; the CPU kernels inline them, the CUDA kernels call them as
+device code.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: smallest denominator used anywhere a depth or luminance difference is divided
+TINY = 1e-30
+#: expneg evaluates (1 + x / 2^EXP_SQUARINGS)^(2^EXP_SQUARINGS)
+EXP_SQUARINGS = 10
+_EXP_SCALE = np.float32(1.0 / (1 << EXP_SQUARINGS))
+_ONE = np.float32(1.0)
+_ZERO = np.float32(0.0)
+
+
+@njit(cache=True, inline="always")
+def luminance(r, g, b):
+    """Rec. 709 luminance of linear RGB."""
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b
+
+
+@njit(cache=True, inline="always")
+def b3_tap(k):
+    """Weight of tap ``k`` in {-2..2} of the 1-D B3-spline kernel (1/16, 1/4, 3/8, 1/4, 1/16)."""
+    a = abs(k)
+    if a == 0:
+        return 0.375
+    if a == 1:
+        return 0.25
+    return 0.0625
+
+
+@njit(cache=True, inline="always")
+def gauss3_tap(k):
+    """Weight of tap ``k`` in {-1, 0, 1} of the 1-D 3-tap Gaussian (1/4, 1/2, 1/4)."""
+    return 0.5 if k == 0 else 0.25
+
+
+@njit(cache=True, inline="always")
+def normal_power(d, exponent, exponent_int):
+    """``max(0, d) ** exponent``; repeated squaring when ``exponent_int >= 0``.
+
+    Parameters
+    ----------
+    d : float
+        Dot product of two unit normals.
+    exponent : float
+        sigma_n of the paper.
+    exponent_int : int
+        ``exponent`` as an integer, or -1 if it is not integral.
+    """
+    if d <= 0.0:
+        return 0.0
+    if d >= 1.0:
+        return 1.0
+    if exponent_int < 0:
+        return math.pow(d, exponent)
+    r = 1.0
+    x = d
+    n = exponent_int
+    while n > 0:
+        if n & 1:
+            r *= x
+        x *= x
+        n >>= 1
+    return r
+
+
+@njit(cache=True, inline="always")
+def depth_distance(zp, zq, gx, gy, dx, dy, sigma_z, depth_eps):
+    """``|z_p - z_q| / (sigma_z |grad z(p) . (dx, dy)| + eps)`` with ``eps = depth_eps * z_p``.
+
+    The depth weight of the paper is ``exp(-depth_distance)``. ``(dx, dy)`` is the offset
+    ``q - p`` in pixels and ``(gx, gy)`` the depth gradient at ``p`` in depth units per pixel.
+    """
+    den = sigma_z * abs(gx * dx + gy * dy) + depth_eps * abs(zp) + TINY
+    return abs(zp - zq) / den
+
+
+@njit(cache=True, inline="always")
+def expneg(x):
+    """Branch-free, vectorizable approximation of ``exp(x)`` for ``x <= 0``, float32.
+
+    ``(max(0, 1 + x / 1024))^1024`` by 10 squarings: exactly 1 at 0, monotone, 0 below -1024,
+    relative error about ``x^2 / 2048`` (0.05% at -1, 0.8% at -4; where it grows the weight is
+    negligible). Used for the à-trous edge-stopping weights so that the CPU loop vectorizes
+    without a vector math library; NaN-free for ``x = -inf``.
+    """
+    y = max(_ONE + np.float32(x) * _EXP_SCALE, _ZERO)
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    y *= y
+    return y
+
+
+@njit(cache=True, inline="always")
+def neg_log_series(d):
+    """``-ln(d)`` for ``d`` in (0, 1] by its series in ``x = 1 - d`` up to ``x^4 / 4``, float32.
+
+    The normal weight is evaluated as ``d^sigma_n = exp(-sigma_n * neg_log_series(d))`` inside
+    the one vectorizable exponential of a tap. The exponent is short by less than
+    ``sigma_n x^5 / 5``: with sigma_n = 128 a relative error of 8e-6 in the weight at
+    ``d = 0.95`` (weight 1.4e-3) and 2.8e-4 at ``d = 0.9`` (weight 1.4e-6). ``d >= 1`` gives 0.
+    """
+    x = max(_ONE - np.float32(d), _ZERO)
+    x2 = x * x
+    return x + np.float32(0.5) * x2 + np.float32(1.0 / 3.0) * x2 * x + np.float32(0.25) * x2 * x2

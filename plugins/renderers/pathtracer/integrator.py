@@ -1,0 +1,334 @@
+"""The path-tracing integrator: next-event estimation with multiple importance sampling.
+
+Every pixel's path starts at the pixel's first hit (the surface point of the G-buffer, traced
+once through the pixel centre), so colour and features agree pixel for pixel. At each vertex the
+integrator samples a light (next-event estimation) and the BSDF, and weights the two strategies
+with the power heuristic (Veach and Guibas, SIGGRAPH 1995). Paths stop at ``max_depth`` segments
+(Mitsuba's convention: 1 = emitters seen directly, 2 = direct lighting) and are Russian-rouletted
+after ``rr_depth`` bounces with survival probability ``min(max throughput, 0.95)``.
+
+``strategy``: 0 = MIS (default), 1 = light sampling only (emitters reached by BSDF sampling count
+only after delta bounces), 2 = BSDF sampling only. All three estimate the same image.
+
+A sample's contribution is "direct" when its path has at most two segments (emission seen at the
+first hit, light arriving at the first hit), "indirect" otherwise.
+
+Random numbers: dimension ``8 * bounce + j`` of the stream :func:`.rng.stream_key` (seed, frame,
+pixel, sample); per-pixel sums are accumulated in sample order in float64 on top of the sums
+passed in, so continuing a pixel's samples later gives bit-identical sums.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .bsdf import DIELECTRIC, bsdf_eval, bsdf_sample, is_delta
+from .lights import infinite_pdf, infinite_radiance, sample_light
+from .rng import stream_key, uniform
+from .traverse import closest_hit, occluded
+from .vecmath import cross, dot, normalize, onb, to_local, to_world
+
+MIS, LIGHT_ONLY, BSDF_ONLY = 0, 1, 2
+STRATEGIES = {"mis": MIS, "light": LIGHT_ONLY, "bsdf": BSDF_ONLY}
+TASK = 16  # pixels per iteration of the parallel loops: one traversal stack each, dynamic balancing
+
+
+@njit(cache=True, error_model="numpy")
+def surface(tri, b1, b2, tri_v, tri_n, tri_uv):
+    """Position, unit geometric normal (winding order), unit shading normal and uv of a hit."""
+    b0 = 1.0 - b1 - b2
+    v0 = (np.float64(tri_v[tri, 0]), np.float64(tri_v[tri, 1]), np.float64(tri_v[tri, 2]))
+    v1 = (np.float64(tri_v[tri, 3]), np.float64(tri_v[tri, 4]), np.float64(tri_v[tri, 5]))
+    v2 = (np.float64(tri_v[tri, 6]), np.float64(tri_v[tri, 7]), np.float64(tri_v[tri, 8]))
+    p = (b0 * v0[0] + b1 * v1[0] + b2 * v2[0], b0 * v0[1] + b1 * v1[1] + b2 * v2[1],
+         b0 * v0[2] + b1 * v1[2] + b2 * v2[2])
+    ng = normalize(cross((v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]),
+                         (v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2])))
+    ns = normalize((b0 * tri_n[tri, 0] + b1 * tri_n[tri, 3] + b2 * tri_n[tri, 6],
+                    b0 * tri_n[tri, 1] + b1 * tri_n[tri, 4] + b2 * tri_n[tri, 7],
+                    b0 * tri_n[tri, 2] + b1 * tri_n[tri, 5] + b2 * tri_n[tri, 8]))
+    if ns[0] == 0.0 and ns[1] == 0.0 and ns[2] == 0.0:
+        ns = ng
+    u = b0 * tri_uv[tri, 0] + b1 * tri_uv[tri, 2] + b2 * tri_uv[tri, 4]
+    v = b0 * tri_uv[tri, 1] + b1 * tri_uv[tri, 3] + b2 * tri_uv[tri, 5]
+    return p, ng, ns, u, v
+
+
+@njit(cache=True, error_model="numpy")
+def albedo_at(m, u, v, base, mat_tex, tex_data, tex_off, tex_w, tex_h):
+    """``base[m]`` times material ``m``'s texture (bilinear, wrapping; texel (r, c) is centred on
+    ``u = (c + 0.5) / w``, ``v = 1 - (r + 0.5) / h``)."""
+    r, g, b = np.float64(base[m, 0]), np.float64(base[m, 1]), np.float64(base[m, 2])
+    k = mat_tex[m]
+    if k < 0:
+        return r, g, b
+    w = tex_w[k]
+    h = tex_h[k]
+    off = tex_off[k]
+    x = (u - math.floor(u)) * w - 0.5
+    y = (1.0 - (v - math.floor(v))) * h - 0.5
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return r, g, b
+    x0 = math.floor(x)
+    y0 = math.floor(y)
+    fx = x - x0
+    fy = y - y0
+    i0 = int(x0) % w
+    j0 = int(y0) % h
+    i1 = (i0 + 1) % w
+    j1 = (j0 + 1) % h
+    return (r * _bilinear(tex_data, off + (j0 * w + i0) * 3, off + (j0 * w + i1) * 3, off + (j1 * w + i0) * 3,
+                          off + (j1 * w + i1) * 3, fx, fy),
+            g * _bilinear(tex_data, off + (j0 * w + i0) * 3 + 1, off + (j0 * w + i1) * 3 + 1,
+                          off + (j1 * w + i0) * 3 + 1, off + (j1 * w + i1) * 3 + 1, fx, fy),
+            b * _bilinear(tex_data, off + (j0 * w + i0) * 3 + 2, off + (j0 * w + i1) * 3 + 2,
+                          off + (j1 * w + i0) * 3 + 2, off + (j1 * w + i1) * 3 + 2, fx, fy))
+
+
+@njit(cache=True, error_model="numpy")
+def _bilinear(tex_data, k00, k01, k10, k11, fx, fy):
+    """Bilinear blend of the texels at flat indices k00 (top left), k01, k10, k11."""
+    a00 = tex_data[k00]
+    a01 = tex_data[k01]
+    a10 = tex_data[k10]
+    a11 = tex_data[k11]
+    return (1 - fy) * ((1 - fx) * a00 + fx * a01) + fy * ((1 - fx) * a10 + fx * a11)
+
+
+@njit(cache=True, error_model="numpy")
+def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, max_depth, rr_depth,
+                 strategy, stack_n, stack_t):
+    """Radiance of one path starting at a known first hit.
+
+    Returns
+    -------
+    tuple
+        ``(r, g, b, dr, dg, db, shadow_rays, shadow_hits)``: radiance, its direct part, and the
+        first hit's light samples and how many of them reached their light.
+    """
+    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i = geom
+    mat_kind, mat_albedo, mat_emit, mat_rough, mat_spec, mat_ior, mat_tex, tex_data, tex_off, tex_w, tex_h = mats
+    emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols = lights
+    lr = lg = lb = 0.0
+    dr = dg = db = 0.0
+    vrays = 0
+    vhits = 0
+    d = ray_d
+    if tri < 0:
+        if max_depth >= 1:
+            lr, lg, lb = infinite_radiance(d, lp, env_img)
+        return lr, lg, lb, lr, lg, lb, vrays, vhits
+    tr = tg = tb = 1.0
+    prev_pdf = 1.0
+    prev_delta = True
+    seg_len = 0.0
+    bounce = 0
+    while True:
+        p, ng, ns, tu, tv = surface(tri, b1, b2, tri_v, tri_n, tri_uv)
+        m = tri_mat[tri]
+        er, eg, eb = np.float64(mat_emit[m, 0]), np.float64(mat_emit[m, 1]), np.float64(mat_emit[m, 2])
+        if er > 0.0 or eg > 0.0 or eb > 0.0:
+            w = 1.0
+            if not prev_delta:
+                if strategy == LIGHT_ONLY:
+                    w = 0.0
+                elif strategy == MIS:
+                    cos_l = abs(dot(ng, d))
+                    pl = tri_light_pdf[tri] * seg_len * seg_len / cos_l if cos_l > 0.0 else 0.0
+                    w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + pl * pl)
+            lr += tr * er * w
+            lg += tg * eg * w
+            lb += tb * eb * w
+            if bounce <= 1:
+                dr += tr * er * w
+                dg += tg * eg * w
+                db += tb * eb * w
+        if bounce + 2 > max_depth:
+            break
+        kind = mat_kind[m]
+        wo = (-d[0], -d[1], -d[2])
+        cos_go = dot(ng, wo)
+        if kind == DIELECTRIC:
+            n = ns
+        else:
+            if cos_go < 0.0:
+                ng = (-ng[0], -ng[1], -ng[2])
+                cos_go = -cos_go
+            n = ns if dot(ns, ng) >= 0.0 else (-ns[0], -ns[1], -ns[2])
+            if dot(n, wo) <= 1e-9:
+                n = ng
+        alb = albedo_at(m, tu, tv, mat_albedo, mat_tex, tex_data, tex_off, tex_w, tex_h)
+        alpha = np.float64(mat_rough[m])
+        spec = (np.float64(mat_spec[m, 0]), np.float64(mat_spec[m, 1]), np.float64(mat_spec[m, 2]))
+        t_ax, s_ax = onb(n)
+        wo_l = to_local(wo, t_ax, s_ax, n)
+        base = 8 * bounce
+        delta = is_delta(kind)
+        if strategy != BSDF_ONLY and not delta:
+            ld, ldist, le, lpdf, ltri = sample_light(
+                uniform(key, base), uniform(key, base + 1), uniform(key, base + 2), p, lp, tri_v, tri_mat,
+                mat_emit, emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols)
+            if lpdf > 0.0:
+                if bounce == 0:
+                    vrays += 1
+                if dot(ld, ng) > 0.0:
+                    wi_l = to_local(ld, t_ax, s_ax, n)
+                    fr, fg, fb, fpdf = bsdf_eval(kind, alb, alpha, spec, wo_l, wi_l)
+                    visible = False
+                    if (fr > 0.0 or fg > 0.0 or fb > 0.0) or bounce == 0:
+                        so = (p[0] + ng[0] * eps, p[1] + ng[1] * eps, p[2] + ng[2] * eps)
+                        tmax = ldist * (1.0 - 1e-4) if ldist < np.inf else np.inf
+                        visible = not occluded(so[0], so[1], so[2], ld[0], ld[1], ld[2], tmax, ltri,
+                                               tri_v, nodes_f, nodes_i, stack_n)
+                    if visible:
+                        if bounce == 0:
+                            vhits += 1
+                        if fr > 0.0 or fg > 0.0 or fb > 0.0:
+                            w = 1.0
+                            if strategy == MIS:
+                                w = lpdf * lpdf / (lpdf * lpdf + fpdf * fpdf)
+                            k = w / lpdf
+                            cr, cg, cb = tr * fr * le[0] * k, tg * fg * le[1] * k, tb * fb * le[2] * k
+                            lr += cr
+                            lg += cg
+                            lb += cb
+                            if bounce == 0:
+                                dr += cr
+                                dg += cg
+                                db += cb
+        wi_l, wr, wg, wb, pdf, dlt = bsdf_sample(kind, alb, alpha, spec, np.float64(mat_ior[m]), wo_l,
+                                                 uniform(key, base + 3), uniform(key, base + 4),
+                                                 uniform(key, base + 5))
+        if not (wr > 0.0 or wg > 0.0 or wb > 0.0):
+            break
+        wi = to_world(wi_l, t_ax, s_ax, n)
+        cos_gi = dot(wi, ng)
+        if (wi_l[2] * wo_l[2] > 0.0) != (cos_gi * cos_go > 0.0) or cos_gi == 0.0:
+            break
+        tr *= wr
+        tg *= wg
+        tb *= wb
+        if bounce + 1 >= rr_depth:
+            q = min(max(tr, tg, tb), 0.95)
+            if uniform(key, base + 6) >= q:
+                break
+            tr /= q
+            tg /= q
+            tb /= q
+        side = eps if cos_gi > 0.0 else -eps
+        o = (p[0] + ng[0] * side, p[1] + ng[1] * side, p[2] + ng[2] * side)
+        hit, t, hb1, hb2 = closest_hit(o[0], o[1], o[2], wi[0], wi[1], wi[2], np.inf, tri,
+                                       tri_v, nodes_f, nodes_i, stack_n, stack_t)
+        if hit < 0:
+            er, eg, eb = infinite_radiance(wi, lp, env_img)
+            w = 1.0
+            if not dlt:
+                if strategy == LIGHT_ONLY:
+                    w = 0.0
+                elif strategy == MIS:
+                    pl = infinite_pdf(wi, lp, env_img, cdf_rows, cdf_cols)
+                    w = pdf * pdf / (pdf * pdf + pl * pl)
+            lr += tr * er * w
+            lg += tg * eg * w
+            lb += tb * eb * w
+            if bounce == 0:
+                dr += tr * er * w
+                dg += tg * eg * w
+                db += tb * eb * w
+            break
+        d = wi
+        tri, b1, b2 = hit, hb1, hb2
+        prev_pdf = pdf
+        prev_delta = dlt
+        seg_len = t
+        bounce += 1
+    return lr, lg, lb, dr, dg, db, vrays, vhits
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def first_hits(origins, dirs, geom, depth):
+    """Closest hit of each primary ray: (tri int32, b1, b2, t) per ray; tri = -1 for a miss."""
+    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i = geom
+    n = origins.shape[0]
+    tri = np.empty(n, np.int32)
+    bary = np.empty((n, 3))
+    for task in prange((n + TASK - 1) // TASK):
+        stack_n = np.empty(depth + 2, np.int32)
+        stack_t = np.empty(depth + 2)
+        for i in range(task * TASK, min(task * TASK + TASK, n)):
+            h, t, b1, b2 = closest_hit(origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1],
+                                       dirs[i, 2], np.inf, -1, tri_v, nodes_f, nodes_i, stack_n, stack_t)
+            tri[i] = h
+            bary[i, 0] = b1
+            bary[i, 1] = b2
+            bary[i, 2] = t
+    return tri, bary
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, depth, max_depth, rr_depth,
+                       strategy, seed, frame, start, count, acc, acc_sq, acc_direct, shadow,
+                       want_moments, want_split):
+    """Add ``count[p]`` samples, from sample index ``start[p]``, to pixel ``p``'s sums (in place).
+
+    Parameters
+    ----------
+    origins, dirs : ndarray (N, 3) float64
+        Primary rays (pixel centres), row-major pixel order.
+    tri, bary : first hits from :func:`first_hits`.
+    geom, mats, lights, lp, eps, depth : scene arrays (see :class:`.scenedata.SceneData`).
+    max_depth, rr_depth, strategy : int
+    seed, frame : int
+    start : ndarray (N,) int64
+    count : ndarray (N,) int64
+    acc, acc_sq, acc_direct : ndarray (N, 3) float64
+        Running sums of radiance, squared radiance and direct radiance.
+    shadow : ndarray (N, 2) float64
+        Running counts of first-hit light samples and of those that reached their light.
+    want_moments, want_split : bool
+        Whether to update ``acc_sq`` and ``acc_direct``.
+    """
+    n = origins.shape[0]
+    for task in prange((n + TASK - 1) // TASK):
+        stack_n = np.empty(depth + 2, np.int32)
+        stack_t = np.empty(depth + 2)
+        for i in range(task * TASK, min(task * TASK + TASK, n)):
+            c = count[i]
+            if c <= 0:
+                continue
+            o = (origins[i, 0], origins[i, 1], origins[i, 2])
+            d = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
+            s0, s1, s2 = acc[i, 0], acc[i, 1], acc[i, 2]
+            q0, q1, q2 = acc_sq[i, 0], acc_sq[i, 1], acc_sq[i, 2]
+            d0, d1, d2 = acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2]
+            rays = 0
+            hits = 0
+            for k in range(c):
+                key = stream_key(seed, frame, i, start[i] + k)
+                r, g, b, xr, xg, xb, vr, vh = trace_sample(key, o, d, tri[i], bary[i, 0], bary[i, 1], geom, mats,
+                                                           lights, lp, eps, max_depth, rr_depth, strategy,
+                                                           stack_n, stack_t)
+                if not (math.isfinite(r) and math.isfinite(g) and math.isfinite(b)
+                        and math.isfinite(xr) and math.isfinite(xg) and math.isfinite(xb)):
+                    r = g = b = xr = xg = xb = 0.0
+                s0 += r
+                s1 += g
+                s2 += b
+                if want_moments:
+                    q0 += r * r
+                    q1 += g * g
+                    q2 += b * b
+                if want_split:
+                    d0 += xr
+                    d1 += xg
+                    d2 += xb
+                rays += vr
+                hits += vh
+            acc[i, 0], acc[i, 1], acc[i, 2] = s0, s1, s2
+            acc_sq[i, 0], acc_sq[i, 1], acc_sq[i, 2] = q0, q1, q2
+            acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2] = d0, d1, d2
+            shadow[i, 0] += rays
+            shadow[i, 1] += hits

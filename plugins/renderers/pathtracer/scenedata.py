@@ -1,0 +1,234 @@
+"""A :class:`harness.Scene` frame flattened to the structure-of-arrays the kernels read."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from harness import Material, Scene, read_texture
+
+from . import lights as L
+from .bvh import build_bvh, pack_nodes
+
+_KIND_CODES = {"diffuse": 0, "conductor": 1, "plastic": 2, "dielectric": 3, "mirror": 4}
+_ENV_CODES = {"constant": L.ENV_CONSTANT, "sky": L.ENV_SKY, "map": L.ENV_MAP}
+
+
+def _lum(rgb) -> float:
+    r, g, b = (float(v) for v in rgb)
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b
+
+
+@dataclass
+class SceneData:
+    """Arrays of one frame of a mesh scene, in BVH order.
+
+    Attributes
+    ----------
+    tri_v, tri_n : ndarray (T, 9) float32
+        Corner positions and shading normals ``(v0, v1, v2)``.
+    tri_uv : ndarray (T, 6) float32
+    tri_mat, tri_obj : ndarray (T,) int32
+    nodes_f, nodes_i : the BVH (see :func:`.bvh.pack_nodes`); ``depth`` its number of levels.
+    mat_* : per-material arrays; ``tex_*`` all textures in one flat float32 array.
+    emit_tri, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols : lights (see :mod:`.lights`).
+    eps : float
+        Ray-origin offset along the geometric normal, relative to the scene's extent.
+    gbuffer_albedo : ndarray (M, 3) float32
+        Untextured colour of the albedo channel per material (F0 for conductors and mirrors,
+        white for dielectrics, the diffuse albedo otherwise).
+    """
+
+    tri_v: np.ndarray
+    tri_n: np.ndarray
+    tri_uv: np.ndarray
+    tri_mat: np.ndarray
+    tri_obj: np.ndarray
+    nodes_f: np.ndarray
+    nodes_i: np.ndarray
+    depth: int
+    mat_kind: np.ndarray
+    mat_albedo: np.ndarray
+    mat_emit: np.ndarray
+    mat_rough: np.ndarray
+    mat_spec: np.ndarray
+    mat_ior: np.ndarray
+    mat_tex: np.ndarray
+    tex_data: np.ndarray
+    tex_off: np.ndarray
+    tex_w: np.ndarray
+    tex_h: np.ndarray
+    emit_tri: np.ndarray
+    emit_cdf: np.ndarray
+    tri_light_pdf: np.ndarray
+    lp: np.ndarray
+    env_img: np.ndarray
+    cdf_rows: np.ndarray
+    cdf_cols: np.ndarray
+    eps: float
+    gbuffer_albedo: np.ndarray
+
+    def geometry(self) -> tuple:
+        """Arrays the traversal and surface lookups need."""
+        return (self.tri_v, self.tri_n, self.tri_uv, self.tri_mat, self.nodes_f, self.nodes_i)
+
+    def materials(self) -> tuple:
+        """Material and texture arrays."""
+        return (self.mat_kind, self.mat_albedo, self.mat_emit, self.mat_rough, self.mat_spec,
+                self.mat_ior, self.mat_tex, self.tex_data, self.tex_off, self.tex_w, self.tex_h)
+
+    def lights(self) -> tuple:
+        """Light-sampling arrays (``lp`` is passed separately)."""
+        return (self.emit_tri, self.emit_cdf, self.tri_light_pdf, self.env_img, self.cdf_rows, self.cdf_cols)
+
+
+def _materials(scene: Scene):
+    mats = list(scene.materials)
+    if not mats:
+        mats = [Material("default")]
+    m = len(mats)
+    kind = np.array([_KIND_CODES[x.kind] for x in mats], np.int32)
+    gbuf = np.array([x.specular if x.kind in ("conductor", "mirror") else (1.0, 1.0, 1.0)
+                     if x.kind == "dielectric" else x.albedo for x in mats], np.float32).reshape(m, 3)
+    albedo = np.array([x.albedo for x in mats], np.float32).reshape(m, 3)
+    emit = np.array([x.emission for x in mats], np.float32).reshape(m, 3)
+    rough = np.array([x.roughness for x in mats], np.float32)
+    spec = np.array([x.specular for x in mats], np.float32).reshape(m, 3)
+    ior = np.array([x.ior for x in mats], np.float32)
+    tex_id = np.full(m, -1, np.int32)
+    chunks, off, tw, th = [], [], [], []
+    total = 0
+    for i, mat in enumerate(mats):
+        img = mat.texture_array()
+        if img is None:
+            continue
+        img = np.ascontiguousarray(np.clip(np.nan_to_num(img, nan=0.0), 0.0, None), np.float32)
+        tex_id[i] = len(off)
+        off.append(total)
+        th.append(img.shape[0])
+        tw.append(img.shape[1])
+        chunks.append(img.ravel())
+        total += img.size
+    tex_data = np.concatenate(chunks) if chunks else np.zeros(3, np.float32)
+    arrays = (kind, albedo, emit, rough, spec, ior, tex_id, tex_data, np.array(off or [0], np.int64),
+              np.array(tw or [1], np.int32), np.array(th or [1], np.int32))
+    return arrays, gbuf
+
+
+def _environment(scene: Scene):
+    env = scene.environment
+    if env is None or env.kind != "map" or env.image is None:
+        return np.zeros((1, 1, 3), np.float32), np.array([0.0, 1.0]), np.array([[0.0, 1.0]])
+    img = env.image if isinstance(env.image, np.ndarray) else read_texture(env.image)
+    img = np.ascontiguousarray(np.clip(np.nan_to_num(np.asarray(img, np.float32)[..., :3], nan=0.0), 0.0, None))
+    rows, cols = L.environment_tables(img)
+    return img, rows, cols
+
+
+def _env_integral(scene: Scene, env_img: np.ndarray) -> float:
+    """Integral of the environment's luminance over the sphere of directions."""
+    env = scene.environment
+    if env is None:
+        return 0.0
+    if env.kind == "constant":
+        return 4.0 * math.pi * max(_lum(env.radiance), 0.0)
+    if env.kind == "sky":
+        return max(4.0 * math.pi * _lum(env.horizon) + math.pi * (_lum(env.radiance) - _lum(env.horizon)), 0.0)
+    if env.image is None:
+        return 0.0
+    h = env_img.shape[0]
+    sin_t = np.sin((np.arange(h) + 0.5) / h * np.pi)
+    mean = float((L.luminance_image(env_img) * sin_t[:, None]).mean())
+    return 2.0 * math.pi * math.pi * mean * max(_lum(env.radiance), 0.0)
+
+
+def build_scene_data(scene: Scene, frame: int) -> SceneData:
+    """Flatten ``scene`` at ``frame``, build its BVH and light tables.
+
+    Parameters
+    ----------
+    scene : harness.Scene
+        A ``mesh`` scene.
+    frame : int
+
+    Returns
+    -------
+    SceneData
+    """
+    soup = scene.triangles(frame)
+    verts = np.asarray(soup.vertices, np.float32)
+    norms = np.asarray(soup.normals, np.float32)
+    uvs = np.asarray(soup.uvs, np.float32)
+    tmat = np.asarray(soup.material, np.int32)
+    tobj = np.asarray(soup.object_id, np.int32)
+    mats, gbuf_albedo = _materials(scene)
+    n_mat = len(mats[0])
+    if len(verts) == 0:
+        verts = np.zeros((1, 3, 3), np.float32)
+        norms = np.zeros((1, 3, 3), np.float32)
+        norms[..., 2] = 1.0
+        uvs = np.zeros((1, 3, 2), np.float32)
+        tmat = np.zeros(1, np.int32)
+        tobj = np.zeros(1, np.int32)
+    if tmat.min() < 0 or tmat.max() >= n_mat:
+        raise ValueError(f"pathtracer: scene {scene.name!r} uses material index {int(tmat.max())} "
+                         f"but has {n_mat} materials")
+    bounds, child, count, order, depth = build_bvh(verts)
+    nodes_f, nodes_i = pack_nodes(bounds, child, count)
+    verts, norms, uvs, tmat, tobj = verts[order], norms[order], uvs[order], tmat[order], tobj[order]
+    tri_v = np.ascontiguousarray(verts.reshape(-1, 9))
+    tri_n = np.ascontiguousarray(norms.reshape(-1, 9))
+    tri_uv = np.ascontiguousarray(uvs.reshape(-1, 6))
+
+    lo = verts.reshape(-1, 3).min(axis=0).astype(np.float64)
+    hi = verts.reshape(-1, 3).max(axis=0).astype(np.float64)
+    radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-6)
+    extent = float(np.abs(np.concatenate([lo, hi])).max())
+    eps = 1e-6 * (1.0 + extent)
+
+    # emissive triangles, in proportion to power (both faces emit)
+    e64 = verts.astype(np.float64)
+    area = 0.5 * np.linalg.norm(np.cross(e64[:, 1] - e64[:, 0], e64[:, 2] - e64[:, 0]), axis=1)
+    emit = mats[2][tmat].astype(np.float64)
+    power = 2.0 * math.pi * area * np.maximum(emit @ np.array([0.2126, 0.7152, 0.0722]), 0.0)
+    emitters = np.flatnonzero((power > 0) & (area > 0)).astype(np.int32)
+    tri_power = float(power[emitters].sum())
+
+    env_img, cdf_rows, cdf_cols = _environment(scene)
+    lp = np.zeros(L.N_PARAMS)
+    lp[L.SUN_COS] = 1.0
+    lp[L.ENV_KIND] = L.ENV_NONE
+    sun_power = env_power = 0.0
+    far = math.pi * radius * radius
+    if scene.sun is not None and _lum(scene.sun.radiance) > 0:
+        radius_deg = max(float(scene.sun.angular_radius), L.MIN_SUN_RADIUS_DEG)
+        cos_max = math.cos(math.radians(radius_deg))
+        lp[L.SUN_DIR:L.SUN_DIR + 3] = scene.sun.direction
+        lp[L.SUN_COS] = cos_max
+        lp[L.SUN_RAD:L.SUN_RAD + 3] = scene.sun.radiance
+        sun_power = far * _lum(scene.sun.radiance) * 2.0 * math.pi * (1.0 - cos_max)
+    if scene.environment is not None:
+        env = scene.environment
+        lp[L.ENV_KIND] = _ENV_CODES[env.kind]
+        lp[L.ENV_RAD:L.ENV_RAD + 3] = env.radiance
+        lp[L.ENV_HORIZON:L.ENV_HORIZON + 3] = env.horizon
+        lp[L.ENV_ROT] = math.radians(env.rotation)
+        env_power = far * _env_integral(scene, env_img)
+    total = tri_power + sun_power + env_power
+    if total > 0:
+        lp[L.P_TRI] = tri_power / total
+        lp[L.P_SUN] = sun_power / total
+        lp[L.P_ENV] = env_power / total
+    tri_light_pdf = np.zeros(len(tri_v))
+    if tri_power > 0:
+        p_each = power[emitters] / tri_power
+        emit_cdf = np.concatenate([[0.0], np.cumsum(p_each)])
+        emit_cdf[-1] = 1.0
+        tri_light_pdf[emitters] = lp[L.P_TRI] * p_each / area[emitters]
+    else:
+        emit_cdf = np.array([0.0, 1.0])
+        emitters = np.zeros(1, np.int32)
+    return SceneData(tri_v, tri_n, tri_uv, tmat, tobj, nodes_f, nodes_i, int(depth), *mats,
+                     emitters, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols, eps, gbuf_albedo)

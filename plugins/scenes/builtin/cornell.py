@@ -1,0 +1,64 @@
+"""The classic Cornell box: white floor, ceiling and back wall, red left and green right wall,
+a tall and a short block, and a square area light just below the ceiling (soft shadows,
+colour bleeding). Dimensions follow the measured box (5.55 m wide) scaled to metres."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from harness import CameraPath, Material, Scene, SceneObject
+
+from .primitives import box, grid, merge, rotate, to_polydata, translate
+
+W = 5.56  # box width, depth and height (m)
+
+
+def _block(size, angle, position, material):
+    half = np.array([size[0] / 2, 0.0, size[2] / 2])
+    part = box(-half, half + np.array([0, size[1], 0]), material)
+    return part.transformed(translate(position) @ rotate((0, 1, 0), angle))
+
+SPEC = {
+    "name": "cornell",
+    "tags": frozenset({"static", "emissive", "soft_shadows", "indirect"}),
+    "frames": 1,
+    "resolution": (128, 128),
+}
+
+
+def build() -> Scene:
+    """Build the ``cornell`` scene (static, one frame)."""
+    materials = [
+        Material("white", albedo=(0.73, 0.73, 0.73)),
+        Material("red", albedo=(0.63, 0.065, 0.05)),
+        Material("green", albedo=(0.14, 0.45, 0.091)),
+        Material("light", albedo=(0.78, 0.78, 0.78), emission=(17.0, 12.0, 4.0)),
+    ]
+    white, red, green, light = range(4)
+    x, y, z = np.eye(3) * W
+    room = merge([
+        grid((0, 0, 0), z, x, white),  # floor, facing +y
+        grid((0, W, 0), x, z, white),  # ceiling, facing -y
+        grid((0, 0, 0), x, y, white),  # back wall, facing +z
+        grid((0, 0, 0), y, z, red),  # left wall, facing +x
+        grid((W, 0, 0), z, y, green),  # right wall, facing -x
+    ])
+    objects = [SceneObject("room", to_polydata(room))]
+    objects.append(SceneObject("tall_block", to_polydata(_block((1.66, 3.3, 1.66), 17.0, (1.85, 0.0, 2.2), white))))
+    objects.append(SceneObject("short_block", to_polydata(_block((1.66, 1.65, 1.66), -17.0, (3.7, 0.0, 3.6), white))))
+    s = 1.3
+    lamp = grid((W / 2 - s / 2, W - 0.01, W / 2 - s / 2), (s, 0, 0), (0, 0, s), light)
+    objects.append(SceneObject("light", to_polydata(lamp)))
+    camera = CameraPath(positions=[(W / 2, W / 2, W + 8.0)], targets=[(W / 2, W / 2, 0.0)], fov=39.3,
+                        near=0.1, far=100.0)
+    return Scene(
+        name=SPEC["name"],
+        frame_count=SPEC["frames"],
+        resolution=SPEC["resolution"],
+        tags=SPEC["tags"],
+        objects=objects,
+        materials=materials,
+        camera=camera,
+        max_depth=8,
+        source="plugins.scenes.builtin",
+    )

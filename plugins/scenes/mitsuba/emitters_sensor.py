@@ -1,0 +1,99 @@
+"""Mitsuba emitters (environment, sun, sky) and the perspective sensor."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from harness import CameraPath, Environment, Sun
+
+from .xmlscene import find, get_color, get_float, get_int, get_string, transform, vector, warn
+
+SUN_RADIUS = 0.2667  # degrees, Mitsuba's sun
+
+
+def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | None, Sun | None]:
+    """An ``<emitter>`` that is not attached to a shape as (environment, sun); either may be None."""
+    kind = node.get("type")
+    if kind == "constant":
+        return Environment(kind="constant", radiance=get_color(node, "radiance", (1.0, 1.0, 1.0))), None
+    if kind == "envmap":
+        matrix = transform(find(node, "toWorld"))
+        r = matrix[:3, :3]
+        rotation = float(np.degrees(np.arctan2(r[0, 2], r[0, 0])))
+        if abs(r[1, 1] - 1.0) > 1e-4:
+            warn("envmap toWorld with tilt approximated by its rotation about the y axis")
+        scale = get_float(node, "scale", 1.0)
+        image = str(folder / get_string(node, "filename"))
+        return Environment(kind="map", image=image, radiance=(scale, scale, scale), rotation=rotation), None
+    if kind in ("sun", "sky", "sunsky"):
+        direction_node = find(node, "sunDirection")
+        if direction_node is not None:
+            direction = vector(direction_node)
+        else:
+            warn(f"{kind}: sun position from date, time and location is not computed; using 45 degrees elevation")
+            direction = np.array([0.5, 0.7071, 0.5])
+        env = sun = None
+        if kind in ("sky", "sunsky"):
+            scale = get_float(node, "skyScale" if kind == "sunsky" else "scale", 1.0)
+            warn(f"{kind}: Hosek-Wilkie sky approximated by a zenith-to-horizon gradient (scale {scale:g})")
+            env = Environment(kind="sky", radiance=(0.06 * scale, 0.1 * scale, 0.2 * scale),
+                              horizon=(0.16 * scale, 0.17 * scale, 0.18 * scale))
+        if kind in ("sun", "sunsky"):
+            scale = get_float(node, "sunScale" if kind == "sunsky" else "scale", 1.0)
+            radius = SUN_RADIUS * get_float(node, "sunRadiusScale", 1.0)
+            solid_angle = 2 * np.pi * (1 - np.cos(np.radians(radius)))
+            irradiance = 1.0 * scale  # approximate: Mitsuba's sun at scale 1 is roughly unit irradiance here
+            warn(f"{kind}: sun spectrum approximated by white of irradiance {irradiance:g} at normal incidence")
+            radiance = (irradiance / solid_angle,) * 3
+            sun = Sun(direction=tuple(direction), angular_radius=radius, radiance=radiance)
+        return env, sun
+    warn(f"emitter type {kind!r} is not supported and was skipped")
+    return None, None
+
+
+def camera(node: ET.Element) -> tuple[CameraPath, tuple[int, int]]:
+    """The perspective ``<sensor>`` as a one-frame :class:`harness.CameraPath` and its film size.
+
+    Mitsuba's camera looks along +z of ``toWorld`` with +y up; ``fov`` is measured along
+    ``fovAxis`` (default ``x``) and converted to the vertical field of view.
+    """
+    kind = node.get("type")
+    if kind not in ("perspective", "thinlens"):
+        warn(f"sensor type {kind!r} approximated by a perspective pinhole")
+    elif kind == "thinlens":
+        warn("thinlens sensor approximated by a pinhole (no depth of field)")
+    film = node.find("film")
+    width = get_int(film, "width", 768) if film is not None else 768
+    height = get_int(film, "height", 576) if film is not None else 576
+    matrix = transform(find(node, "toWorld"))
+    if np.linalg.det(matrix[:3, :3]) < 0:
+        warn("sensor toWorld mirrors the image; the camera renders it unmirrored")
+    eye = matrix[:3, 3]
+    forward = matrix[:3, :3] @ np.array([0.0, 0.0, 1.0])
+    up = matrix[:3, :3] @ np.array([0.0, 1.0, 0.0])
+    fov = get_float(node, "fov", None)
+    axis = (get_string(node, "fovAxis", "x") or "x").lower()
+    if fov is None:
+        focal = get_string(node, "focalLength", "50mm")
+        mm = float(focal.replace("mm", ""))
+        fov, axis = float(np.degrees(2 * np.arctan(36.0 / (2 * mm)))), "x"
+        warn(f"focalLength {focal} converted to a horizontal fov of {fov:.3g} degrees (35 mm film)")
+    tan_half = np.tan(np.radians(fov) / 2)
+    aspect = width / height
+    if axis == "smaller":
+        axis = "x" if width < height else "y"
+    elif axis == "larger":
+        axis = "x" if width >= height else "y"
+    if axis == "x":
+        tan_half /= aspect
+    elif axis == "diagonal":
+        tan_half /= np.hypot(aspect, 1.0)
+    vertical = float(np.degrees(2 * np.arctan(tan_half)))
+    near = get_float(node, "nearClip", 0.01)
+    far = get_float(node, "farClip", 10000.0)
+    path = CameraPath(positions=[eye], targets=[eye + forward], up=tuple(up / np.linalg.norm(up)), fov=vertical,
+                      near=min(near, 0.05), far=far)
+    return path, (width, height)

@@ -1,0 +1,376 @@
+"""Tests of the ``lbf`` filter plugin: Numba vs PyTorch, weights file, training, CUDA simulator."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from harness import CHANNELS, Frame, FrameMeta, load_plugins
+from plugins.filters.lbf import features as FE
+from plugins.filters.lbf import kernels as K
+from plugins.filters.lbf.denoiser import LBFFilter
+from plugins.filters.lbf.filter_cpu import cross_bilateral
+from plugins.filters.lbf.mlp import predict_bandwidths
+from plugins.filters.lbf.weights import (
+    DEFAULT_WEIGHTS,
+    FORMAT_VERSION,
+    LBFWeights,
+    WeightsError,
+    load_weights,
+    save_weights,
+)
+
+torch = pytest.importorskip("torch")
+TR = pytest.importorskip("plugins.filters.lbf.torch_ref")
+
+ROOT = Path(__file__).resolve().parents[1]
+REQUIRED = {"color", "normal", "albedo", "position", "variance"}
+
+
+def random_frame(h, w, seed=0, visibility=False, spp=False, scale=1.0, variance=True) -> Frame:
+    """A frame with piecewise-constant G-buffer regions, a background corner and noisy colour.
+
+    ``variance=False`` zeroes the variance channel (as a 1-spp path tracer leaves it).
+    """
+    variance_on = 1.0 if variance else 0.0
+    rng = np.random.default_rng(seed)
+    region = (np.arange(w)[None, :] * 3 // max(w, 1) + (np.arange(h)[:, None] * 2 // max(h, 1)) * 3)
+    normals = rng.normal(size=(6, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normal = normals[region]
+    albedo = rng.uniform(0.1, 0.9, (6, 3))[region]
+    position = rng.normal(size=(h, w, 3)) * 0.1 + region[..., None] * 0.5
+    fg = np.ones((h, w), bool)
+    fg[: max(h // 4, 0), : max(w // 4, 0)] = False
+    normal[~fg] = 0
+    albedo[~fg] = 0
+    position[~fg] = 0
+    clean = albedo * rng.uniform(0.2, 2.0, 6)[region][..., None] + (~fg)[..., None] * 0.7
+    var = (0.3 * clean) ** 2 * fg[..., None]
+    color = clean + rng.normal(size=(h, w, 3)) * np.sqrt(var)
+    ch = {
+        "color": (color * scale).astype(np.float32),
+        "variance": np.minimum(var * scale * scale * variance_on, 1e38).astype(np.float32),
+        "normal": normal.astype(np.float32),
+        "albedo": albedo.astype(np.float32),
+        "position": position.astype(np.float32),
+    }
+    if visibility:
+        ch["visibility"] = (rng.uniform(size=(h, w)) > 0.3).astype(np.float32) * fg
+    if spp:
+        ch["spp"] = rng.integers(1, 5, (h, w)).astype(np.int32)
+    return Frame(ch, FrameMeta(scene="lbf-test"))
+
+
+def synthetic_frame(width=40, height=30, seed=0):
+    reg = load_plugins()
+    renderer = reg.renderers["synthetic"].factory()
+    scene = reg.scenes["synthetic-edges"].factory()
+    size = (width, height)
+    channels = frozenset(CHANNELS)
+    frame = renderer.render(scene, 0, spp=1, seed=seed, channels=channels, resolution=size)
+    return frame, renderer.reference(scene, 0, resolution=size)
+
+
+def torch_inputs(inputs: FE.Inputs):
+    def t(a):
+        return torch.from_numpy(np.array(a))
+
+    return (t(inputs.color), t(inputs.variance), t(inputs.position), t(inputs.normal),
+            t(inputs.albedo), t(inputs.vis) if inputs.has_vis else None,
+            t(inputs.spp) if inputs.has_spp else None)
+
+
+def t64(a):
+    return torch.from_numpy(np.array(a, np.float64))
+
+
+def torch_mlp(feat, model: LBFWeights):
+    feat = feat if isinstance(feat, torch.Tensor) else t64(feat)
+    arrays = (model.mean, model.inv_std, model.w1, model.b1, model.w2, model.b2)
+    return TR.mlp(feat, *(t64(a) for a in arrays))
+
+
+def torch_pipeline(inputs: FE.Inputs, model: LBFWeights, radius: int) -> np.ndarray:
+    """The whole filter in float64 PyTorch: the reference of the Numba inference."""
+    var, sig, feat = TR.features(*torch_inputs(inputs))
+    params = torch_mlp(feat, model)
+    t = t64
+    return TR.cross_bilateral(t(inputs.color), var, sig, params, radius).numpy()
+
+
+def relmse(x, ref):
+    return float(np.mean((x - ref) ** 2 / (ref * ref + 0.01)))
+
+
+# --- Numba inference against the PyTorch implementation ---------------------------------------
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: synthetic_frame(40, 30)[0],
+        lambda: random_frame(13, 7, seed=1, visibility=True, spp=True),
+        lambda: random_frame(1, 9, seed=2),
+        lambda: random_frame(1, 1, seed=3),
+        lambda: random_frame(11, 14, seed=4, variance=False),
+    ],
+    ids=["synthetic", "random-odd", "row", "pixel", "no-variance"],
+)
+def test_features_match_torch(make):
+    inputs = FE.gather_inputs(make())
+    var, sig, feat = FE.extract_features(inputs)
+    var_t, sig_t, feat_t = TR.features(*torch_inputs(inputs))
+    np.testing.assert_allclose(var, var_t.numpy(), rtol=1e-6, atol=1e-12)
+    assert feat.shape == inputs.shape + (len(FE.FEATURE_NAMES),)
+    np.testing.assert_allclose(sig, sig_t.numpy(), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(feat, feat_t.numpy(), rtol=1e-5, atol=1e-5)
+
+
+def test_features_analytic_values():
+    """A constant frame has zero deviations, gradients and noise, and known pixel statistics."""
+    h, w = 9, 11
+    ch = {
+        "color": np.full((h, w, 3), np.e - 1, np.float32),
+        "variance": np.full((h, w, 3), 4.0 * np.e**2, np.float32),
+        "normal": np.tile(np.float32([0, 1, 0]), (h, w, 1)),
+        "albedo": np.full((h, w, 3), 0.5, np.float32),
+        "position": np.zeros((h, w, 3), np.float32),
+    }
+    _, _, feat = FE.extract_features(FE.gather_inputs(Frame(ch)))
+    named = dict(zip(FE.FEATURE_NAMES, np.moveaxis(feat, -1, 0), strict=True))
+    for prefix in ("std7_", "std3_", "mad3_", "grad_", "noise_"):
+        for g in FE.GROUPS:
+            np.testing.assert_allclose(named[prefix + g], 0.0, atol=1e-6)
+    np.testing.assert_allclose(named["pixel_color"], 1.0, rtol=1e-6)  # log1p(e - 1)
+    np.testing.assert_allclose(named["sample_std_color"], 2.0, rtol=1e-5)  # sqrt(4 e^2) / e
+    np.testing.assert_allclose(named["pixel_visibility"], 1.0)  # stand-in: all foreground
+    np.testing.assert_allclose(named["inv_spp"], 1.0)
+
+
+def test_visibility_standin_is_foreground_mask():
+    frame = random_frame(8, 12, seed=4, visibility=True)
+    fg = (frame["normal"] != 0).any(-1)
+    _, sig_auto, _ = FE.extract_features(FE.gather_inputs(frame, "auto"))
+    _, sig_stand, _ = FE.extract_features(FE.gather_inputs(frame, "standin"))
+    np.testing.assert_array_equal(sig_auto[..., 12], frame["visibility"])
+    np.testing.assert_array_equal(sig_stand[..., 12], fg.astype(np.float32))
+
+
+def test_network_and_filter_match_torch():
+    model = load_weights()
+    frame = random_frame(15, 17, seed=5, visibility=True)
+    inputs = FE.gather_inputs(frame)
+    var, sig, feat = FE.extract_features(inputs)
+    params = predict_bandwidths(feat, model)
+    params_t = torch_mlp(feat, model)
+    t = t64
+    np.testing.assert_allclose(params, params_t.numpy(), rtol=1e-5, atol=1e-12)
+    assert np.all(params > 0)
+    out = cross_bilateral(inputs.color, var, sig, params, 4)
+    out_t = TR.cross_bilateral(t(inputs.color), t(var), t(sig), t(params), 4)
+    np.testing.assert_allclose(out, out_t.numpy(), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize("radius", [0, 2, 5])
+def test_end_to_end_matches_torch(radius):
+    frame, _ = synthetic_frame(24, 18, seed=3)
+    filt = LBFFilter(radius=radius)
+    out = filt(frame)
+    ref = torch_pipeline(FE.gather_inputs(frame), filt.model, radius)
+    np.testing.assert_allclose(out, ref, rtol=1e-4, atol=1e-5)
+    assert set(filt.stage_ms) == {"features", "network", "bilateral"}
+    if radius == 0:
+        np.testing.assert_array_equal(out, frame["color"])
+
+
+def test_filter_gradient_wrt_bandwidths():
+    """The PyTorch filter is differentiable in its bandwidths (autograd = finite differences)."""
+    frame = random_frame(3, 4, seed=6)
+    inputs = FE.gather_inputs(frame)
+    _, sig, _ = TR.features(*torch_inputs(inputs))
+    params = torch.full((3, 4, 6), 0.05, dtype=torch.float64, requires_grad=True)
+    color, var = torch_inputs(inputs)[:2]
+    loss = lambda p: TR.cross_bilateral(color, var, sig, p, 1).sum()  # noqa: E731
+    assert torch.autograd.gradcheck(loss, (params,))
+
+
+# --- behaviour of the filter ---------------------------------------------------------------------
+
+def test_shipped_weights_denoise_benchmark_scene():
+    frame, ref = synthetic_frame(64, 48, seed=11)
+    out = LBFFilter()(frame)
+    assert relmse(out, ref) < 0.5 * relmse(frame["color"], ref)
+    meta = load_weights().meta
+    assert len(meta["training_data_hash"]) == 64 and meta["seed"] == 0
+    assert meta["heldout_relmse"]["final"] < meta["heldout_relmse"]["initial"]
+
+
+def test_properties():
+    filt = LBFFilter()
+    frame = random_frame(10, 13, seed=7)
+    color = frame["color"].copy()
+    a, b = filt(frame), filt(frame)
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(frame["color"], color)
+    assert a.dtype == np.float32 and a.shape == (10, 13, 3)
+    const = frame.replace(color=np.full((10, 13, 3), 0.37, np.float32))
+    np.testing.assert_allclose(filt(const), 0.37, rtol=1e-6)
+    zeros = np.zeros((10, 13, 3), np.float32)
+    zero = frame.replace(color=zeros, variance=zeros)
+    np.testing.assert_array_equal(filt(zero), 0.0)
+    for scale in (1e30, 1e-30, 6e4):
+        out = filt(random_frame(9, 8, seed=8, scale=scale))
+        assert np.all(np.isfinite(out))
+    firefly = color.copy()
+    firefly[5, 6] = 1e6
+    assert np.all(np.isfinite(filt(frame.replace(color=firefly))))
+
+
+def test_spec_and_parameters():
+    reg = load_plugins()
+    spec = reg.filters["lbf"]
+    assert spec.requires == frozenset(REQUIRED)
+    assert spec.optional == frozenset({"visibility", "spp"})
+    assert spec.backends == ("cpu", "cuda") and spec.trainer is not None
+    filt = spec.factory(backend="cpu", **spec.params)
+    assert filt.radius == 5
+    with pytest.raises(TypeError, match="bogus"):
+        spec.factory(backend="cpu", bogus=1)
+    with pytest.raises(ValueError, match="radius"):
+        LBFFilter(radius=-1)
+    with pytest.raises(ValueError, match="backend"):
+        LBFFilter(backend="metal")
+    with pytest.raises(ValueError, match="visibility"):
+        LBFFilter(visibility="maybe")
+
+
+# --- weights file ---------------------------------------------------------------------------------
+
+def _rewrite(src: Path, dst: Path, **changes):
+    with np.load(src) as data:
+        arrays = {k: data[k] for k in data.files}
+    meta = json.loads(str(arrays.pop("meta")))
+    for key, value in changes.items():
+        if key in arrays:
+            arrays[key] = value
+        else:
+            meta[key] = value
+    np.savez(dst, meta=np.array(json.dumps(meta)), **arrays)
+    return dst
+
+
+def test_weights_roundtrip(tmp_path):
+    model = load_weights(DEFAULT_WEIGHTS)
+    path = save_weights(model, tmp_path / "w.npz")
+    again = load_weights(path)
+    for name in ("w1", "b1", "w2", "b2", "mean", "std"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(model, name))
+    assert again.meta["training_data_hash"] == model.meta["training_data_hash"]
+
+
+def test_weights_errors(tmp_path):
+    good = DEFAULT_WEIGHTS
+    with pytest.raises(WeightsError, match="not found"):
+        load_weights(tmp_path / "missing.npz")
+    truncated = tmp_path / "truncated.npz"
+    truncated.write_bytes(good.read_bytes()[:300])
+    with pytest.raises(WeightsError, match="corrupted"):
+        load_weights(truncated)
+    garbage = tmp_path / "garbage.npz"
+    garbage.write_bytes(b"not a weights file" * 10)
+    with pytest.raises(WeightsError, match="corrupted"):
+        load_weights(garbage)
+    altered = load_weights(good).w1.copy()
+    altered[0, 0] += 1.0
+    with pytest.raises(WeightsError, match="checksum"):
+        load_weights(_rewrite(good, tmp_path / "altered.npz", w1=altered))
+    with pytest.raises(WeightsError, match="format version"):
+        load_weights(_rewrite(good, tmp_path / "version.npz", format_version=FORMAT_VERSION + 1))
+    names = list(FE.FEATURE_NAMES)
+    names[3], names[4] = names[4], names[3]
+    with pytest.raises(WeightsError, match="feature list mismatch"):
+        load_weights(_rewrite(good, tmp_path / "features.npz", feature_names=names))
+    with pytest.raises(WeightsError, match="shape"):
+        wide = np.zeros((12, K.N_FEATURES), np.float32)
+        load_weights(_rewrite(good, tmp_path / "shape.npz", w1=wide))
+    with pytest.raises(WeightsError):
+        LBFFilter(weights=str(truncated))
+
+
+# --- training -------------------------------------------------------------------------------------
+
+def test_training_data_excludes_benchmark_scenes_and_is_deterministic():
+    from plugins.filters.lbf import train as T
+
+    rng_a, rng_b = np.random.default_rng(5), np.random.default_rng(5)
+    variants = [T._variant(rng_a, T.FULL) for _ in range(40)]
+    assert all(v["layout"]["checker"] != T.BENCHMARK_CHECKER for v in variants)
+    a = T.make_dataset(9, 2, T.QUICK)
+    b = T.make_dataset(9, 2, T.QUICK)
+    assert T.data_hash([a]) == T.data_hash([b])
+    assert T._variant(rng_b, T.FULL) == variants[0]
+
+
+def test_quick_training_lowers_heldout_relmse(tmp_path):
+    reg = load_plugins()
+    path = reg.filters["lbf"].trainer(seed=1, output=tmp_path / "quick.npz", quick=True)
+    model = load_weights(path)
+    scores = model.meta["heldout_relmse"]
+    assert scores["final"] < 0.8 * scores["initial"]
+    assert scores["final"] < scores["noisy"]
+    assert model.meta["quick"] is True and model.meta["seed"] == 1
+    # the Numba inference with the new weights denoises an unseen frame
+    frame, ref = synthetic_frame(48, 36, seed=21)
+    out = LBFFilter(weights=str(path))(frame)
+    assert relmse(out, ref) < relmse(frame["color"], ref)
+
+
+# --- isolation and CUDA ---------------------------------------------------------------------------
+
+def _run(code: str, **env) -> str:
+    proc = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], cwd=ROOT,
+                          capture_output=True, text=True, env={**os.environ, **env}, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout
+
+
+def test_inference_does_not_import_torch():
+    out = _run("""
+        import sys
+        import numpy as np
+        from harness import Frame
+        from plugins.filters.lbf import LBFFilter
+        rng = np.random.default_rng(0)
+        ch = {k: rng.uniform(size=(5, 6, 3)).astype(np.float32)
+              for k in ("color", "variance", "normal", "albedo", "position")}
+        LBFFilter()(Frame(ch))
+        print("torch" in sys.modules)
+    """)
+    assert out.strip() == "False"
+
+
+def test_cuda_simulator_matches_cpu():
+    out = _run("""
+        import numpy as np
+        from tests.test_lbf import random_frame
+        from plugins.filters.lbf import LBFFilter
+        cpu, gpu = LBFFilter(backend="cpu", radius=3), LBFFilter(backend="cuda", radius=3)
+        worst = 0.0
+        frames = (random_frame(8, 9, seed=1, visibility=True, spp=True),
+                  random_frame(5, 4, seed=3, variance=False), random_frame(1, 3, seed=2))
+        for frame in frames:
+            a, b = cpu(frame), gpu(frame)
+            assert b.shape == a.shape and b.dtype == np.float32
+            worst = max(worst, float(np.abs(a - b).max() / (np.abs(a).max() + 1e-6)))
+        print(worst, sorted(gpu.stage_ms))
+    """, NUMBA_ENABLE_CUDASIM="1")
+    worst, stages = out.split(" ", 1)
+    assert float(worst) < 1e-5
+    assert "features" in stages and "bilateral" in stages
