@@ -3,6 +3,7 @@
 This module is the public API. Plugins import only names from here.
 """
 
+
 from harness.backends import available_backends, cuda_available, cuda_simulated
 from harness.buffers import (
     CHANNELS,
@@ -14,6 +15,7 @@ from harness.buffers import (
 )
 from harness.hookspecs import hookimpl
 from harness.images import encode_srgb, write_png
+from harness.numba_cache import configure_numba_cache
 from harness.plugins import PluginConflictError, Registry, load_plugins
 from harness.sampling import Sampler
 from harness.scene import (
@@ -30,6 +32,9 @@ from harness.scene import (
 from harness.specs import FilterSpec, MetricSpec, RendererSpec, SceneSpec
 
 __version__ = "0.1.0"
+
+# before any plugin compiles: a Numba cache keyed by the source (see harness.numba_cache)
+configure_numba_cache()
 
 __all__ = [
     "CHANNELS",

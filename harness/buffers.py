@@ -29,6 +29,7 @@ CHANNELS: Mapping[str, tuple[int, type, str]] = {
     "direct": (3, np.float32, "colour from directly lit paths (direct + indirect = color)"),
     "indirect": (3, np.float32, "colour from paths with two or more bounces"),
     "albedo": (3, np.float32, "first-hit surface albedo (textured)"),
+    "emission": (3, np.float32, "radiance emitted by the first-hit surface (part of color)"),
     "normal": (3, np.float32, "first-hit world-space shading normal, unit length"),
     "depth": (1, np.float32, "first-hit view-space depth; inf for background"),
     "position": (3, np.float32, "first-hit world position"),

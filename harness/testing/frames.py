@@ -55,6 +55,7 @@ def make_frame(
         "direct": (rgb * 0.6).astype(np.float32),
         "indirect": (rgb - rgb * 0.6).astype(np.float32),
         "albedo": albedo.astype(np.float32),
+        "emission": np.zeros((*shape, 3), np.float32),
         "normal": normal,
         "depth": depth,
         "position": position,

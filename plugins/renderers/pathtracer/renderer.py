@@ -14,7 +14,7 @@ from .integrator import STRATEGIES, accumulate_samples, first_hits
 from .scenedata import SceneData, build_scene_data
 
 OWNER = "renderer 'pathtracer'"
-GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "visibility")
+GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "emission", "visibility")
 
 
 class PixelState:
@@ -66,8 +66,22 @@ class FrameSetup:
                 "albedo": alb.reshape(h, w, 3),
                 "depth": depth.reshape(h, w),
                 "object_id": oid.reshape(h, w),
+                "emission": self.emission().reshape(h, w, 3),
             }
         return self._gbuffer
+
+    def emission(self) -> np.ndarray:
+        """Emitted radiance of each pixel's first hit (N, 3) float32; zero for background.
+
+        Both faces of an emitter emit, as in the integrator, so this is exactly the part of
+        ``color`` that reaches the camera without a bounce.
+        """
+        mat_emit = np.asarray(self.data.mat_emit, np.float32)
+        tri_mat = np.asarray(self.data.tri_mat)
+        hit = self.tri >= 0
+        out = np.zeros((self.tri.shape[0], 3), np.float32)
+        out[hit] = mat_emit[tri_mat[self.tri[hit]]]
+        return out
 
 
 class PathTracer:

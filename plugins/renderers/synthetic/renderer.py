@@ -9,7 +9,7 @@ from harness import Frame, FrameMeta, Sampler
 from . import noise
 from .pattern import Layout, gbuffer, motion
 
-_GBUFFER = ("albedo", "normal", "depth", "position", "object_id", "motion", "visibility")
+_GBUFFER = ("albedo", "normal", "depth", "position", "object_id", "motion", "visibility", "emission")
 
 
 def _sample_sum(g: dict, seed: int, frame: int, first: int, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -70,6 +70,8 @@ class SyntheticRenderer:
                 continue
             if name == "object_id":
                 out[name] = g["region"].astype(np.int32)
+            elif name == "emission":  # no emitting surfaces (the sky is background)
+                out[name] = np.zeros((h, w, 3), np.float32)
             elif name == "motion":
                 out[name] = motion(layout, frame_index, w, h, g)
             else:
