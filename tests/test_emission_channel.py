@@ -1,6 +1,5 @@
 """The ``emission`` channel: the part of the colour emitted by the first-hit surface."""
 
-import numpy as np
 
 from harness.testing import registry
 

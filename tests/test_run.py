@@ -294,3 +294,15 @@ def test_pictures_are_written(tmp_path):
     )
     images = sorted(p.name for p in (tmp_path / "o" / "images" / "synthetic-edges").glob("*.png"))
     assert images == ["gaussian-cpu-spp1.png", "input-spp1.png", "reference.png"]
+
+
+def test_mesh_scenes_run_end_to_end_with_the_path_tracer(tmp_path):
+    out = bench(["run", "--scenes", "cornell,street", "--frames", "2", "--resolution", "32x24", "--reference-spp", "16",
+                 "--filters", "eaw,svgf,sbf,lbf,passthrough", "--strict", "--quiet", "--repeats", "1",
+                 "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
+    df = pd.read_parquet(tmp_path / "o" / "results.parquet")
+    assert set(df.status) == {"ok"}, out.stdout
+    assert set(df.renderer) == {"pathtracer"} and len(df) == 5 * (1 + 2)
+    assert np.isfinite(df[["rmse", "ssim", "flip", "relmse"]].to_numpy()).all()
+    street = df[df.scene == "street"]
+    assert street.groupby("filter").temporal_error.count().eq(1).all()

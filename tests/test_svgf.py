@@ -271,3 +271,62 @@ def test_cuda_backend_agrees_with_cpu_in_simulator():
     proc = subprocess.run([sys.executable, "-c", script], env=env, cwd=ROOT, capture_output=True,
                           text=True, timeout=600)
     assert proc.returncode == 0 and "AGREE" in proc.stdout, proc.stderr[-3000:]
+
+
+def _emitter_frame(rng, h, w, camera_cut):
+    # a noisy lit wall with a bright emissive patch (as a directly visible light)
+    frame = _flat_frame(h, w, 0.0, camera_cut=camera_cut)
+    emission = np.zeros((h, w, 3), np.float32)
+    emission[3:7, 4:9] = np.float32([6.0, 5.0, 4.0])
+    direct = rng.exponential(0.3, (h, w, 3)).astype(np.float32)
+    indirect = rng.exponential(0.1, (h, w, 3)).astype(np.float32)
+    direct += emission
+    return frame.replace(color=direct + indirect, direct=direct, indirect=indirect, emission=emission)
+
+
+def _without_emission(frame):
+    emission = frame["emission"]
+    channels = {k: frame[k] for k in ("albedo", "normal", "depth", "object_id", "motion")}
+    channels.update(color=frame["color"] - emission, direct=frame["direct"] - emission,
+                    indirect=frame["indirect"])
+    return Frame(channels, frame.meta)
+
+
+@pytest.mark.parametrize("separate", [True, False])
+def test_emission_is_added_back_unfiltered(registry, separate):
+    # (signal - emission) is filtered, the emission added back: the result equals the filtered
+    # reflected light (the same frame without its emitted part) plus the emission, exactly
+    rng = np.random.default_rng(5)
+    with_em = _svgf(registry, separate_lighting=separate)
+    reflected = _svgf(registry, separate_lighting=separate)
+    for k in range(3):
+        frame = _emitter_frame(rng, 12, 14, camera_cut=k == 0)
+        out = with_em(frame)
+        base = reflected(_without_emission(frame))
+        np.testing.assert_allclose(out, base + frame["emission"], rtol=1e-5, atol=1e-5)
+        lit = frame["emission"].max(axis=-1) > 0
+        # the emitter keeps its radiance; the wall around it gets none of it
+        assert np.all(out[lit] >= frame["emission"][lit])
+        assert float(np.abs(out[~lit] - base[~lit]).max()) <= 1e-5
+    assert "emission" in registry.filters["svgf"].optional
+
+
+def test_emission_improves_cornell(registry):
+    if "pathtracer" not in registry.renderers or "cornell" not in registry.scenes:
+        pytest.skip("the pathtracer renderer or the cornell scene is not registered")
+    renderer = registry.renderers["pathtracer"].factory()
+    scene = registry.scenes["cornell"].factory()
+    res = (40, 40)
+    ref = renderer.reference(scene, 0, spp=128, seed=0, resolution=res)
+    with_em, without = _svgf(registry), _svgf(registry)
+    for k in range(2):
+        frame = renderer.render(scene, k, spp=1, seed=k, channels=frozenset(CHANNELS), resolution=res)
+        assert frame["emission"].any()  # the ceiling light is in view
+        out = with_em(frame)
+        channels = {c: frame[c] for c in CHANNELS if c in frame and c != "emission"}
+        plain = without(Frame(channels, frame.meta))
+    everywhere = np.ones(ref.shape[:2], bool)
+    noisy = _rmse(frame["color"], ref, everywhere)
+    # measured at 40x40: 0.038 with emission, 0.43 without (the light smeared), 0.081 noisy
+    assert _rmse(out, ref, everywhere) < 0.7 * noisy
+    assert _rmse(out, ref, everywhere) < 0.3 * _rmse(plain, ref, everywhere)

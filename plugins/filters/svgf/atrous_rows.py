@@ -5,14 +5,14 @@ same order of accumulation), with the loops turned inside out: each thread takes
 and, for each of the 25 taps, sweeps the row with branch-free float32 arithmetic into per-row
 accumulators, so that LLVM vectorizes the inner loop (the exponential is
 :func:`.weights.expneg`, the normal power folded into its argument by
-:func:`.weights.neg_log_series`). Background pixels enter with weight 0 and are written as 0.
+:func:`.weights.neg_log_series`). Background pixels enter with weight 0 and are written as 0;
+each row is swept only between its first and last surface pixel.
 
 To let LLVM vectorize, the inner loops run over row slices from index 0 (provably
 non-negative: no wraparound tests), divisions follow NumPy's error model (no
-zero-division branch; every denominator here is positive) and each loop stores to one array
-only (few pointer pairs
-to test for aliasing at run time): the tap weights go to a buffer first, then each
-accumulator is updated by its own loop.
+zero-division branch; every denominator here is positive) and each loop stores to few arrays
+(few pointer pairs to test for aliasing at run time): the tap weights go to a buffer first,
+then one loop updates the weight and colour sums, another the float64 variance sum.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ _TINY = np.float32(1e-20)
 #: differences are clamped at _ARG_MAX times their scale, so no product overflows (fastmath)
 _ARG_MAX = np.float32(1024.0)
 _F32_MAX = 3.0e38
+_TINY64 = 1e-300
 
 
 @njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
@@ -46,6 +47,21 @@ def atrous_rows(step, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, si
     sn = np.float32(sigma_n)
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
+        # the columns from the first to the last surface pixel of the row: only those are
+        # filtered (background is written as 0; a row of background costs nothing more)
+        jlo = w
+        jhi = 0
+        for j in range(w):
+            if valid[i, j] != 0:
+                jlo = min(jlo, j)
+                jhi = j + 1
+        if jlo >= jhi:
+            for s in range(nsig):
+                for j in range(w):
+                    for c in range(3):
+                        sig_out[s, c, i, j] = 0.0
+                    var_out[s, i, j] = 0.0
+            continue
         lp = np.empty((nsig, w), np.float32)
         il = np.empty((nsig, w), np.float32)
         lim = np.empty((nsig, w), np.float32)
@@ -79,12 +95,20 @@ def atrous_rows(step, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, si
                     for k in range(n):
                         pn[k] += np.float64(g * np.float32(vq[k])) * vr[k]
         for s in range(nsig):
+            lpr = lp[s]
+            ilr = il[s]
+            limr = lim[s]
+            pn = pnum[s]
+            c0 = sig[s, 0, i]
+            c1 = sig[s, 1, i]
+            c2 = sig[s, 2, i]
+            # branch-free (vectorized): where no neighbour is valid pnum is 0 too
             for j in range(w):
-                lp[s, j] = _LR * sig[s, 0, i, j] + _LG * sig[s, 1, i, j] + _LB * sig[s, 2, i, j]
-                pv = pnum[s, j] / pden[j] if pden[j] > 0.0 else 0.0
+                lpr[j] = _LR * c0[j] + _LG * c1[j] + _LB * c2[j]
+                pv = pn[j] / max(np.float64(pden[j]), _TINY64)
                 den = sigma_l * math.sqrt(pv) + lum_eps
-                il[s, j] = 1.0 / den
-                lim[s, j] = min(1024.0 * den, _F32_MAX)
+                ilr[j] = 1.0 / den
+                limr[j] = min(1024.0 * den, _F32_MAX)
         for ky in range(-2, 3):
             y = i + ky * step
             if y < 0 or y >= h:
@@ -92,8 +116,8 @@ def atrous_rows(step, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, si
             dyf = np.float32(ky * step)
             for kx in range(-2, 3):
                 off = kx * step
-                j0 = max(0, -off)
-                j1 = min(w, w - off)
+                j0 = max(jlo, -off)
+                j1 = min(jhi, w - off)
                 if j0 >= j1:
                     continue
                 hk = np.float32(b3_tap(ky) * b3_tap(kx))
@@ -140,13 +164,15 @@ def atrous_rows(step, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, si
                             arg = dr[k] + min(abs(lpr[k] - lq), limr[k]) * ilr[k]
                             wt[k] = wnr[k] * expneg(-min(arg, _ARG_MAX))
                     aw = acc[s, 0, j0:j1]
+                    ar = acc[s, 1, j0:j1]
+                    ag = acc[s, 2, j0:j1]
+                    ab = acc[s, 3, j0:j1]
                     for k in range(n):
-                        aw[k] += wt[k]
-                    for c in range(3):
-                        ac = acc[s, c + 1, j0:j1]
-                        cq = sig[s, c, y, q0:q1]
-                        for k in range(n):
-                            ac[k] += wt[k] * cq[k]
+                        t = wt[k]
+                        aw[k] += t
+                        ar[k] += t * c0[k]
+                        ag[k] += t * c1[k]
+                        ab[k] += t * c2[k]
                     av = accv[s, j0:j1]
                     vr = var[s, y, q0:q1]
                     for k in range(n):

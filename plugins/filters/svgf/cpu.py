@@ -18,14 +18,15 @@ from .variance_rows import variance_rows
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _prepare(first, second, nsig, albedo_in, normal_in, depth_in, obj_in, motion_in, albedo_eps,
-             sig, albedo, valid, depth, normal, obj, motion, grad):
+def _prepare(first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in, obj_in,
+             motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad):
     h, w = depth_in.shape
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
         for j in range(w):
-            prepare_pixel(i, j, first, second, nsig, albedo_in, normal_in, depth_in, obj_in,
-                          motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion)
+            prepare_pixel(i, j, first, second, nsig, emission, has_emission, albedo_in, normal_in,
+                          depth_in, obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal,
+                          obj, motion)
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
         for j in range(w):
@@ -47,12 +48,12 @@ def _reproject(sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom,
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _remodulate(sig, albedo, valid, color, out):
+def _remodulate(sig, albedo, valid, color, emission, has_emission, out):
     h, w = valid.shape
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
         for j in range(w):
-            remodulate_pixel(i, j, sig, albedo, valid, color, out)
+            remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, out)
 
 
 class CpuOps:

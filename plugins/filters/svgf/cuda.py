@@ -45,12 +45,13 @@ _remodulate_px = _device(remodulate_pixel)
 
 
 @cuda.jit
-def _prepare_kernel(first, second, nsig, albedo_in, normal_in, depth_in, obj_in, motion_in,
-                    albedo_eps, sig, albedo, valid, depth, normal, obj, motion):
+def _prepare_kernel(first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+                    obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion):
     j, i = cuda.grid(2)
     if i < depth_in.shape[0] and j < depth_in.shape[1]:
-        _prepare_px(i, j, first, second, nsig, albedo_in, normal_in, depth_in, obj_in, motion_in,
-                    albedo_eps, sig, albedo, valid, depth, normal, obj, motion)
+        _prepare_px(i, j, first, second, nsig, emission, has_emission, albedo_in, normal_in,
+                    depth_in, obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal,
+                    obj, motion)
 
 
 @cuda.jit
@@ -92,10 +93,10 @@ def _atrous_kernel(step, sig, var, valid, depth, normal, grad, sigma_z, sigma_n,
 
 
 @cuda.jit
-def _remodulate_kernel(sig, albedo, valid, color, out):
+def _remodulate_kernel(sig, albedo, valid, color, emission, has_emission, out):
     j, i = cuda.grid(2)
     if i < valid.shape[0] and j < valid.shape[1]:
-        _remodulate_px(i, j, sig, albedo, valid, color, out)
+        _remodulate_px(i, j, sig, albedo, valid, color, emission, has_emission, out)
 
 
 _BLOCK = (16, 8)
@@ -129,12 +130,13 @@ class CudaOps:
         """Wait for every launched kernel."""
         cuda.synchronize()
 
-    def prepare(self, first, second, nsig, albedo_in, normal_in, depth_in, obj_in, motion_in,
-                albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad):
+    def prepare(self, first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+                obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad):
         """Demodulate, convert the G-buffer to planar layouts, compute the depth gradient."""
         g = _grid(*depth_in.shape)
-        _prepare_kernel[g, _BLOCK](first, second, nsig, albedo_in, normal_in, depth_in, obj_in,
-                                   motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion)
+        _prepare_kernel[g, _BLOCK](first, second, nsig, emission, has_emission, albedo_in,
+                                   normal_in, depth_in, obj_in, motion_in, albedo_eps, sig, albedo,
+                                   valid, depth, normal, obj, motion)
         _gradient_kernel[g, _BLOCK](depth, valid, grad)
 
     def reproject(self, *args):
@@ -149,6 +151,8 @@ class CudaOps:
         """One à-trous iteration (see :func:`.atrous.atrous_pixel`)."""
         _atrous_kernel[_grid(*valid.shape), _BLOCK](step, sig, var, valid, *rest)
 
-    def remodulate(self, sig, albedo, valid, color, out):
-        """Multiply the filtered signals by the albedo (input colour on background)."""
-        _remodulate_kernel[_grid(*valid.shape), _BLOCK](sig, albedo, valid, color, out)
+    def remodulate(self, sig, albedo, valid, color, emission, has_emission, out):
+        """Multiply the filtered signals by the albedo and add the emission (input colour on
+        background)."""
+        _remodulate_kernel[_grid(*valid.shape), _BLOCK](sig, albedo, valid, color, emission,
+                                                        has_emission, out)

@@ -15,9 +15,12 @@ F32_BIG = 1.0e37
 
 
 @njit(cache=True, inline="always")
-def prepare_pixel(i, j, first, second, nsig, albedo_in, normal_in, depth_in, obj_in, motion_in,
-                  albedo_eps, sig, albedo, valid, depth, normal, obj, motion):
+def prepare_pixel(i, j, first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+                  obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion):
     """Demodulate pixel (i, j) and write its planar G-buffer.
+
+    The first signal is demodulated as ``(first - emission) / max(albedo, albedo_eps)`` (the
+    emitted radiance is direct light and is not filtered; :func:`remodulate_pixel` adds it back).
 
     Parameters
     ----------
@@ -27,6 +30,10 @@ def prepare_pixel(i, j, first, second, nsig, albedo_in, normal_in, depth_in, obj
         The signals (``direct`` and ``indirect``, or ``color`` twice with ``nsig == 1``).
     nsig : int
         Number of signals, 1 or 2.
+    emission : ndarray (H, W, 3) float32
+        Radiance emitted by the first-hit surface (read only when ``has_emission``).
+    has_emission : bool
+        Whether the frame has an ``emission`` channel.
     albedo_in, normal_in : ndarray (H, W, 3) float32
     depth_in : ndarray (H, W) float32
     obj_in : ndarray (H, W) int32
@@ -53,7 +60,8 @@ def prepare_pixel(i, j, first, second, nsig, albedo_in, normal_in, depth_in, obj
         a = max(albedo_in[i, j, c], albedo_eps)
         albedo[c, i, j] = a
         if ok:
-            sig[0, c, i, j] = min(max(first[i, j, c] / a, -F32_BIG), F32_BIG)
+            e = emission[i, j, c] if has_emission else 0.0
+            sig[0, c, i, j] = min(max((first[i, j, c] - e) / a, -F32_BIG), F32_BIG)
             if nsig == 2:
                 sig[1, c, i, j] = min(max(second[i, j, c] / a, -F32_BIG), F32_BIG)
         else:
@@ -62,8 +70,9 @@ def prepare_pixel(i, j, first, second, nsig, albedo_in, normal_in, depth_in, obj
 
 
 @njit(cache=True, inline="always")
-def remodulate_pixel(i, j, sig, albedo, valid, color, out):
-    """Write ``albedo * sum of filtered signals`` at pixel (i, j), the input colour on background.
+def remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, out):
+    """Write ``albedo * sum of filtered signals + emission`` at pixel (i, j), the input colour on
+    background.
 
     Parameters
     ----------
@@ -74,6 +83,9 @@ def remodulate_pixel(i, j, sig, albedo, valid, color, out):
     valid : ndarray (H, W) uint8
     color : ndarray (H, W, 3) float32
         The input colour (copied on background pixels).
+    emission : ndarray (H, W, 3) float32
+        Emitted radiance added back unfiltered (read only when ``has_emission``).
+    has_emission : bool
     out : ndarray (H, W, 3) float32
     """
     if valid[i, j] == 0:
@@ -84,4 +96,5 @@ def remodulate_pixel(i, j, sig, albedo, valid, color, out):
         acc = 0.0
         for s in range(sig.shape[0]):
             acc += sig[s, c, i, j]
-        out[i, j, c] = min(max(albedo[c, i, j] * acc, -F32_BIG), F32_BIG)
+        e = emission[i, j, c] if has_emission else 0.0
+        out[i, j, c] = min(max(albedo[c, i, j] * acc + e, -F32_BIG), F32_BIG)

@@ -39,7 +39,9 @@ class SVGF:
     Notes
     -----
     Frames with ``direct`` and ``indirect`` are filtered as two signals (each demodulated by
-    the albedo) unless ``separate_lighting=False``, others as one (``color``). History is
+    the albedo) unless ``separate_lighting=False``, others as one (``color``). With an
+    ``emission`` channel the emitted radiance is subtracted from ``color`` (or ``direct``)
+    before demodulation and added back, unfiltered, after remodulation. History is
     dropped on :meth:`reset`, when a frame's ``meta.camera_cut`` is set, and when the size or
     the number of signals changes.
     """
@@ -107,8 +109,11 @@ class SVGF:
         color = ops.upload(frame["color"])
         first = ops.upload(frame["direct"]) if nsig == 2 else color
         second = ops.upload(frame["indirect"]) if nsig == 2 else color
-        ops.prepare(first, second, nsig, ops.upload(frame["albedo"]), ops.upload(frame["normal"]),
-                    ops.upload(frame["depth"]), ops.upload(frame["object_id"]),
+        has_emission = "emission" in frame
+        # without the channel a 1x1 stand-in keeps one compiled signature (it is never read)
+        emission = ops.upload(frame["emission"] if has_emission else np.zeros((1, 1, 3), np.float32))
+        ops.prepare(first, second, nsig, emission, has_emission, ops.upload(frame["albedo"]),
+                    ops.upload(frame["normal"]), ops.upload(frame["depth"]), ops.upload(frame["object_id"]),
                     ops.upload(frame["motion"]), p.albedo_epsilon, cur["sig"], cur["albedo"],
                     cur["valid"], cur["depth"], cur["normal"], cur["obj"], cur["motion"], cur["grad"])
         lap("prepare")
@@ -141,7 +146,7 @@ class SVGF:
                 var_free.append(var)
             src, var = dst, var_dst
             lap(f"atrous_{it}")
-        ops.remodulate(src, cur["albedo"], cur["valid"], color, cur["out"])
+        ops.remodulate(src, cur["albedo"], cur["valid"], color, emission, has_emission, cur["out"])
         out = ops.download(cur["out"])
         lap("remodulate")
         times["total"] = (time.perf_counter() - t_start) * 1e3

@@ -65,6 +65,35 @@ def _consistent(y, x, z, ztol, nx, ny, nz, oid, ntol, prev_valid, prev_depth, pr
 
 
 @njit(cache=True, inline="always")
+def _add(s, y, x, wt, prev_sig, prev_mom, r, g, b, u, v):
+    """The sums ``(r, g, b, u, v)`` of signal ``s`` plus ``wt`` times its history at (y, x)."""
+    return (r + wt * prev_sig[s, 0, y, x], g + wt * prev_sig[s, 1, y, x], b + wt * prev_sig[s, 2, y, x],
+            u + wt * prev_mom[s, 0, y, x], v + wt * prev_mom[s, 1, y, x])
+
+
+@njit(cache=True, inline="always")
+def _store(s, i, j, r, g, b, u, v, acc_sig, acc_mom):
+    """Write colour ``(r, g, b)`` and moments ``(u, v)`` of signal ``s`` at pixel (i, j)."""
+    acc_sig[s, 0, i, j] = r
+    acc_sig[s, 1, i, j] = g
+    acc_sig[s, 2, i, j] = b
+    acc_mom[s, 0, i, j] = u
+    acc_mom[s, 1, i, j] = v
+
+
+@njit(cache=True, inline="always")
+def _blend(s, i, j, sig, a_c, a_m, inv, r, g, b, u, v, acc_sig, acc_mom):
+    """Blend signal ``s`` of the current frame with its history sums ``(r, g, b, u, v) * inv``."""
+    cr = sig[s, 0, i, j]
+    cg = sig[s, 1, i, j]
+    cb = sig[s, 2, i, j]
+    lum = luminance(float(cr), float(cg), float(cb))
+    _store(s, i, j, a_c * cr + (1.0 - a_c) * (r * inv), a_c * cg + (1.0 - a_c) * (g * inv),
+           a_c * cb + (1.0 - a_c) * (b * inv), a_m * lum + (1.0 - a_m) * (u * inv),
+           a_m * lum * lum + (1.0 - a_m) * (v * inv), acc_sig, acc_mom)
+
+
+@njit(cache=True, inline="always")
 def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
                     prev_sig, prev_mom, prev_hist, prev_valid, prev_depth, prev_normal, prev_obj,
                     has_prev, depth_tol, normal_tol, alpha_color, alpha_moments, history_average,
@@ -101,14 +130,12 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
     acc_sig, acc_mom, hist : ndarray
         Outputs, shaped as ``prev_sig``, ``prev_mom``, ``prev_hist``.
     """
-    nsig = sig.shape[0]
-    for s in range(nsig):
-        for c in range(3):
-            acc_sig[s, c, i, j] = 0.0
-        acc_mom[s, 0, i, j] = 0.0
-        acc_mom[s, 1, i, j] = 0.0
+    two = sig.shape[0] == 2
     if valid[i, j] == 0:
         hist[i, j] = 0.0
+        _store(0, i, j, 0.0, 0.0, 0.0, 0.0, 0.0, acc_sig, acc_mom)
+        if two:
+            _store(1, i, j, 0.0, 0.0, 0.0, 0.0, 0.0, acc_sig, acc_mom)
         return
     z = depth[i, j]
     ztol = depth_tol * abs(z) + 2.0 * (abs(grad[0, i, j]) + abs(grad[1, i, j]))
@@ -116,8 +143,12 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
     ny = normal[1, i, j]
     nz = normal[2, i, j]
     oid = obj[i, j]
+    # weighted sums of the history (colour r, g, b; moments u, v) of signals 0 and 1, kept in
+    # registers
     wsum = 0.0
     hsum = 0.0
+    r0 = g0 = b0 = u0 = v0 = 0.0
+    r1 = g1 = b1 = u1 = v1 = 0.0
     if has_prev:
         px = j + motion[0, i, j]
         py = i + motion[1, i, j]
@@ -136,20 +167,15 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
                 continue
             wsum += wt
             hsum += wt * prev_hist[y, x]
-            for s in range(nsig):
-                for c in range(3):
-                    acc_sig[s, c, i, j] += wt * prev_sig[s, c, y, x]
-                acc_mom[s, 0, i, j] += wt * prev_mom[s, 0, y, x]
-                acc_mom[s, 1, i, j] += wt * prev_mom[s, 1, y, x]
+            r0, g0, b0, u0, v0 = _add(0, y, x, wt, prev_sig, prev_mom, r0, g0, b0, u0, v0)
+            if two:
+                r1, g1, b1, u1, v1 = _add(1, y, x, wt, prev_sig, prev_mom, r1, g1, b1, u1, v1)
         if wsum < 1e-3:
             # no bilinear tap passed: the consistent taps of the 3x3 neighbourhood, equal weights
-            for s in range(nsig):
-                for c in range(3):
-                    acc_sig[s, c, i, j] = 0.0
-                acc_mom[s, 0, i, j] = 0.0
-                acc_mom[s, 1, i, j] = 0.0
             wsum = 0.0
             hsum = 0.0
+            r0 = g0 = b0 = u0 = v0 = 0.0
+            r1 = g1 = b1 = u1 = v1 = 0.0
             xc = int(math.floor(px + 0.5))
             yc = int(math.floor(py + 0.5))
             for t in range(9):
@@ -160,11 +186,9 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
                     continue
                 wsum += 1.0
                 hsum += prev_hist[y, x]
-                for s in range(nsig):
-                    for c in range(3):
-                        acc_sig[s, c, i, j] += prev_sig[s, c, y, x]
-                    acc_mom[s, 0, i, j] += prev_mom[s, 0, y, x]
-                    acc_mom[s, 1, i, j] += prev_mom[s, 1, y, x]
+                r0, g0, b0, u0, v0 = _add(0, y, x, 1.0, prev_sig, prev_mom, r0, g0, b0, u0, v0)
+                if two:
+                    r1, g1, b1, u1, v1 = _add(1, y, x, 1.0, prev_sig, prev_mom, r1, g1, b1, u1, v1)
     if wsum > 0.0:
         inv = 1.0 / wsum
         n = min(hsum * inv + 1.0, max_history)
@@ -179,12 +203,6 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
         a_c = 1.0
         a_m = 1.0
     hist[i, j] = n
-    for s in range(nsig):
-        r = sig[s, 0, i, j]
-        g = sig[s, 1, i, j]
-        b = sig[s, 2, i, j]
-        for c in range(3):
-            acc_sig[s, c, i, j] = a_c * sig[s, c, i, j] + (1.0 - a_c) * (acc_sig[s, c, i, j] * inv)
-        lum = luminance(float(r), float(g), float(b))
-        acc_mom[s, 0, i, j] = a_m * lum + (1.0 - a_m) * (acc_mom[s, 0, i, j] * inv)
-        acc_mom[s, 1, i, j] = a_m * lum * lum + (1.0 - a_m) * (acc_mom[s, 1, i, j] * inv)
+    _blend(0, i, j, sig, a_c, a_m, inv, r0, g0, b0, u0, v0, acc_sig, acc_mom)
+    if two:
+        _blend(1, i, j, sig, a_c, a_m, inv, r1, g1, b1, u1, v1, acc_sig, acc_mom)
