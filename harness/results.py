@@ -261,7 +261,7 @@ def make_manifest(registry, plan, options: dict, scene_hashes: dict, reference_h
     return {
         "harness_version": __version__,
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "command": " ".join(sys.argv),
+        "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]]) if sys.argv else "",
         "options": options,
         "git_commit": _git_commit(),
         "machine": machine_info(),
