@@ -3,7 +3,6 @@
 This module is the public API. Plugins import only names from here.
 """
 
-
 from harness.backends import available_backends, cuda_available, cuda_simulated
 from harness.buffers import (
     CHANNELS,

@@ -10,7 +10,6 @@ import hashlib
 import importlib.metadata as importlib_metadata
 import os
 import sys
-import traceback
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,6 +19,7 @@ from typing import Any
 import pluggy
 
 from harness import hookspecs
+from harness.errors import short_error
 from harness.specs import FilterSpec, MetricSpec, RendererSpec, SceneSpec
 
 ENTRY_POINT_GROUP = "denoise_harness"
@@ -112,7 +112,7 @@ class Registry:
             try:
                 scene = impl.function(path=path)
             except Exception as exc:
-                errors.append(f"{impl.plugin_name}: {_short_error(exc)}")
+                errors.append(f"{impl.plugin_name}: {short_error(exc)}")
                 continue
             if scene is not None:
                 return scene
@@ -167,12 +167,6 @@ def disabled_names(extra: Iterable[str] = ()) -> set[str]:
     return names | set(extra)
 
 
-def _short_error(exc: BaseException) -> str:
-    last = traceback.extract_tb(exc.__traceback__)[-1:] if exc.__traceback__ else []
-    where = f" ({Path(last[0].filename).name}:{last[0].lineno})" if last else ""
-    return f"{type(exc).__name__}: {exc}{where}"
-
-
 def load_plugins(disable: Iterable[str] = (), extra: Iterable[Any] = (), entry_points: bool = True) -> Registry:
     """Load every plugin and collect its specs.
 
@@ -221,7 +215,7 @@ def load_plugins(disable: Iterable[str] = (), extra: Iterable[Any] = (), entry_p
                         distribution=dist,
                         entry_point=ep.value,
                         status="broken",
-                        error=_short_error(exc),
+                        error=short_error(exc),
                     )
                 )
                 continue
@@ -249,7 +243,7 @@ def load_plugins(disable: Iterable[str] = (), extra: Iterable[Any] = (), entry_p
                         distribution=dist,
                         entry_point=ep_value,
                         status="broken",
-                        error=_short_error(exc),
+                        error=short_error(exc),
                     )
                 )
                 continue

@@ -18,7 +18,6 @@ import copy
 import json
 import math
 import time
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,6 +26,7 @@ import pandas as pd
 
 from harness.buffers import ChannelError, Frame, FrameMeta, apply_nonfinite_policy, check_filter_output
 from harness.cache import Cache, array_hash, make_key
+from harness.errors import short_error
 from harness.results import combine, make_table, write_table
 
 #: seed of every reference render: independent of the noisy frames' seeds
@@ -57,14 +57,6 @@ class RunOptions:
     progress: bool = True
     pictures: bool = False
     renderer_settings: dict = field(default_factory=dict)
-
-
-def short_error(exc: BaseException, limit: int = 300) -> str:
-    """``Type: message (file:line)`` of the innermost frame, at most ``limit`` characters."""
-    tb = traceback.extract_tb(exc.__traceback__)
-    where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
-    text = f"{type(exc).__name__}: {exc}".replace("\n", " ")
-    return (text[: limit - len(where)] + where) if len(text) + len(where) > limit else text + where
 
 
 class Runner:
