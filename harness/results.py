@@ -280,6 +280,10 @@ def write_manifest(manifest: dict, path: Path) -> None:
     atomic_write_bytes(Path(path), json.dumps(manifest, indent=2, sort_keys=True, default=str).encode())
 
 
+def _format_float(v, floatfmt: str) -> str:
+    return "-" if v is None or np.isnan(v) else floatfmt.format(v)
+
+
 def format_table(df: pd.DataFrame, floatfmt: str = "{:.4g}") -> str:
     """A plain-text table for the terminal."""
     if df.empty:
@@ -287,9 +291,7 @@ def format_table(df: pd.DataFrame, floatfmt: str = "{:.4g}") -> str:
     shown = df.copy()
     for c in shown.columns:
         if shown[c].dtype.kind == "f":
-            shown[c] = shown[c].map(
-                lambda v: "-" if v is None or (isinstance(v, float) and np.isnan(v)) else floatfmt.format(v)
-            )
+            shown[c] = shown[c].map(lambda v: _format_float(v, floatfmt))
     return shown.to_string(index=False)
 
 
@@ -299,9 +301,7 @@ def to_markdown(df: pd.DataFrame, floatfmt: str = "{:.4g}") -> str:
         return "(no rows)\n"
 
     def cell(v):
-        if isinstance(v, float):
-            return "-" if np.isnan(v) else floatfmt.format(v)
-        return str(v).replace("|", "\\|")
+        return _format_float(v, floatfmt) if isinstance(v, float) else str(v).replace("|", "\\|")
 
     lines = ["| " + " | ".join(map(str, df.columns)) + " |", "|" + "---|" * len(df.columns)]
     lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in df.itertuples(index=False)]

@@ -85,7 +85,6 @@ class Runner:
         self.scene_hashes: dict[str, str] = {}
         self.reference_hashes: dict[str, str] = {}
         self.reused_jobs = 0
-        self.rendered = 0
         self.metric_names = [m for m in self._all_metric_names()]
 
     # ------------------------------------------------------------------ plumbing
@@ -151,7 +150,6 @@ class Runner:
                 f"renderer {group.renderer!r}: render() returned {type(frame).__name__}, expected harness.Frame"
             )
         frame = Frame(frame.arrays(), frame.meta, owner=f"renderer {group.renderer!r}")
-        self.rendered += 1
         arrays = dict(frame.arrays())
         arrays["__meta__"] = np.frombuffer(json.dumps(_meta_to_json(frame.meta)).encode(), np.uint8)
         self.cache.store("frames", key, arrays)

@@ -13,7 +13,6 @@ from typing import Any
 
 from harness.buffers import CHANNELS
 
-KINDS = ("filter", "renderer", "metric", "scene")
 BACKENDS = ("cpu", "cuda")
 
 
