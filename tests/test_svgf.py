@@ -330,3 +330,82 @@ def test_emission_improves_cornell(registry):
     # measured at 40x40: 0.038 with emission, 0.43 without (the light smeared), 0.081 noisy
     assert _rmse(out, ref, everywhere) < 0.7 * noisy
     assert _rmse(out, ref, everywhere) < 0.3 * _rmse(plain, ref, everywhere)
+
+
+def _atrous_oracle():
+    from numba import njit
+
+    from plugins.filters.svgf.atrous import atrous_pixel
+
+    @njit(cache=False)
+    def run(step, sig, var, valid, depth, normal, grad, params, sig_out, var_out):
+        h, w = valid.shape
+        for i in range(h):
+            for j in range(w):
+                atrous_pixel(i, j, step, sig, var, valid, depth, normal, grad, params[0], params[1], params[2],
+                             params[3], params[4], sig_out, var_out)
+
+    return run
+
+
+@pytest.mark.parametrize("nsig", [1, 2])
+def test_cpu_atrous_planes_match_the_per_pixel_filter(nsig):
+    # the cpu backend's padded-plane kernel against the per-pixel definition (which the cuda
+    # backend runs), over five chained iterations with background holes, borders and a large
+    # step; variances are compared from the pool, where the kernel keeps them
+    from plugins.filters.svgf import atrous_planes as ap
+
+    rng = np.random.default_rng(3)
+    h, w, iterations = 37, 53, 5
+    sig = rng.gamma(1.0, 0.5, (nsig, 3, h, w)).astype(np.float32)
+    var = rng.gamma(1.0, 0.05, (nsig, h, w))
+    valid = (rng.random((h, w)) > 0.15).astype(np.uint8)
+    valid[:, :3] = 0
+    normal = rng.normal(size=(3, h, w))
+    normal[2] += 3.0
+    normal = (normal / np.linalg.norm(normal, axis=0)).astype(np.float32)
+    depth = (2.0 + rng.random((h, w)) * 0.1).astype(np.float32)
+    grad = (rng.normal(size=(2, h, w)) * 0.01).astype(np.float32)
+    params = (1.0, 128.0, 4.0, 1e-3, 1e-10)
+    oracle = _atrous_oracle()
+    pool = ap.PlanePool(nsig, h, w, iterations)
+    ap.pack_planes(valid, depth, normal, grad, sig, var, params[0], params[3], pool.halo, pool.stride,
+                   pool.plane_size, pool.signal_plane(0), pool.planes)
+    planes = pool.planes.reshape(-1, h, pool.stride)[:, :, pool.halo:pool.halo + w]
+    for it in range(iterations):
+        want, want_var = np.empty_like(sig), np.empty_like(var)
+        oracle(1 << it, sig, var, valid, depth, normal, grad, np.array(params), want, want_var)
+        got = np.full_like(sig, np.nan)
+        dst = pool.signal_plane((it + 1) % 2)
+        ap.atrous_level(pool.planes, pool.plane_size, nsig, h, w, pool.halo, pool.stride, 1 << it,
+                        pool.signal_plane(it % 2), dst, params[1], params[2], params[4], True, got, 2)
+        np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5)
+        got_var = np.stack([planes[dst + s * ap.SIGNAL_PLANES + 3] for s in range(nsig)])
+        np.testing.assert_allclose(got_var, want_var, rtol=1e-4, atol=1e-7)
+        assert np.all(got[:, :, valid == 0] == 0.0)
+        sig, var = want, want_var
+
+
+def test_expneg_error_bound_cut_and_no_subnormals():
+    from numba import njit
+
+    from plugins.filters.svgf.weights import EXP_CUT, expneg
+
+    @njit(cache=False)
+    def run(x):
+        out = np.empty_like(x)
+        for k in range(x.size):
+            out[k] = expneg(x[k])
+        return out
+
+    x = np.concatenate([-np.geomspace(1e-6, EXP_CUT * 0.999, 4000), [0.0, -EXP_CUT * 1.001, -1e3, -np.inf]])
+    x = np.sort(x.astype(np.float32))
+    y = run(x)
+    inside = x > -EXP_CUT
+    exact = np.exp(x[inside].astype(np.float64))
+    rel = np.abs(y[inside] - exact) / exact
+    # x^2/2048 from the truncation, plus float32 rounding of 1 + x/1024 grown by 10 squarings
+    assert np.all(rel <= x[inside].astype(np.float64) ** 2 / 2048 + 1024 * 2.0 ** -23)
+    assert np.all(y[~inside] == 0.0) and y[x == 0][0] == 1.0
+    assert np.all(np.diff(y) >= 0)  # monotone
+    assert np.all(y[inside] >= np.finfo(np.float32).tiny)  # no subnormal weight

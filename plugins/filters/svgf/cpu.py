@@ -1,17 +1,17 @@
 """The ``cpu`` backend: parallel Numba loops over image rows.
 
 Preparation, reprojection and remodulation call the per-pixel stage functions (inlined); the
-variance and the à-trous iterations use the row-vectorized kernels of :mod:`.variance_rows`
-and :mod:`.atrous_rows`. NumPy's error model: no zero-division branches (every division in the
-stages is guarded or has a positive denominator).
+variance uses the row-vectorized kernel of :mod:`.variance_rows`, the à-trous iterations the
+padded planes of :mod:`.atrous_planes`. NumPy's error model: no zero-division branches (every
+division in the stages is guarded or has a positive denominator).
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
-from .atrous_rows import atrous_rows
+from .atrous_planes import PlanePool, atrous_level, pack_planes
 from .modulation import prepare_pixel, remodulate_pixel
 from .reproject import gradient_pixel, reproject_pixel
 from .variance_rows import variance_rows
@@ -59,6 +59,9 @@ def _remodulate(sig, albedo, valid, color, emission, has_emission, out):
 class CpuOps:
     """Array allocation and stage launches of the ``cpu`` backend (NumPy arrays, Numba loops)."""
 
+    def __init__(self):
+        self._pool = None
+
 
     def empty(self, shape, dtype):
         """An uninitialised host array."""
@@ -78,5 +81,24 @@ class CpuOps:
     prepare = staticmethod(_prepare)
     reproject = staticmethod(_reproject)
     variance = staticmethod(variance_rows)
-    atrous = staticmethod(atrous_rows)
+
+    def atrous(self, it, iterations, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, sigma_l,
+               depth_eps, lum_eps, sig_out, var_out, keep):
+        """Iteration ``it`` of ``iterations`` on the padded planes of :mod:`.atrous_planes`.
+
+        The first iteration packs the G-buffer, ``sig`` and ``var`` into the pool; later ones
+        read the pool's previous output (their ``sig`` and ``var`` are not read). The filtered
+        signals are written to ``sig_out`` only when ``keep``; the variances stay in the pool
+        (``var_out`` is not written).
+        """
+        nsig, _, h, w = sig.shape
+        pool = self._pool
+        if it == 0:
+            if pool is None or pool.key != (nsig, h, w, iterations):
+                pool = self._pool = PlanePool(nsig, h, w, iterations)
+            pack_planes(valid, depth, normal, grad, sig, var, sigma_z, depth_eps, pool.halo, pool.stride,
+                        pool.plane_size, pool.signal_plane(0), pool.planes)
+        atrous_level(pool.planes, pool.plane_size, nsig, h, w, pool.halo, pool.stride, 1 << it,
+                     pool.signal_plane(it % 2), pool.signal_plane((it + 1) % 2), sigma_n, sigma_l, lum_eps, keep,
+                     sig_out, get_num_threads())
     remodulate = staticmethod(_remodulate)

@@ -147,9 +147,12 @@ class CudaOps:
         """Luminance variance (see :func:`.variance.variance_pixel`)."""
         _variance_kernel[_grid(*args[2].shape), _BLOCK](*args)
 
-    def atrous(self, step, sig, var, valid, *rest):
-        """One à-trous iteration (see :func:`.atrous.atrous_pixel`)."""
-        _atrous_kernel[_grid(*valid.shape), _BLOCK](step, sig, var, valid, *rest)
+    def atrous(self, it, iterations, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, sigma_l,
+               depth_eps, lum_eps, sig_out, var_out, keep):
+        """Iteration ``it`` of ``iterations`` (see :func:`.atrous.atrous_pixel`); every output is
+        written, ``keep`` or not."""
+        _atrous_kernel[_grid(*valid.shape), _BLOCK](1 << it, sig, var, valid, depth, normal, grad, sigma_z,
+                                                    sigma_n, sigma_l, depth_eps, lum_eps, sig_out, var_out)
 
     def remodulate(self, sig, albedo, valid, color, emission, has_emission, out):
         """Multiply the filtered signals by the albedo and add the emission (input colour on

@@ -135,9 +135,11 @@ class SVGF:
         var, var_free = cur["var"], [cur["var_b"], cur["var_c"]]
         for it in range(p.iterations):
             dst, var_dst = free.pop(0), var_free.pop(0)
-            ops.atrous(1 << it, src, var, cur["valid"], cur["depth"], cur["normal"],
+            # the signals of the feedback and the last iteration are read afterwards
+            keep = it == p.feedback_iteration or it == p.iterations - 1
+            ops.atrous(it, p.iterations, src, var, cur["valid"], cur["depth"], cur["normal"],
                        cur["grad"], p.sigma_z, p.sigma_n, p.sigma_l, p.depth_epsilon,
-                       p.luminance_epsilon, dst, var_dst)
+                       p.luminance_epsilon, dst, var_dst, keep)
             if it == p.feedback_iteration:
                 feedback = dst
             if src is not feedback:

@@ -3,7 +3,7 @@
 The same estimate as :func:`plugins.filters.svgf.variance.variance_pixel`: temporal
 ``mu2 - mu1^2`` where the history is long enough, else the 7x7 depth- and normal-weighted
 spatial estimate. Rows without a short-history pixel skip the spatial sums; other rows sweep
-the 49 taps with branch-free float32 weights (as in :mod:`.atrous_rows`) into float64 sums.
+the 49 taps with branch-free float32 weights (as the à-trous iterations) into float64 sums.
 """
 
 from __future__ import annotations

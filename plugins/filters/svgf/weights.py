@@ -16,6 +16,12 @@ TINY = 1e-30
 #: expneg evaluates (1 + x / 2^EXP_SQUARINGS)^(2^EXP_SQUARINGS)
 EXP_SQUARINGS = 10
 _EXP_SCALE = np.float32(1.0 / (1 << EXP_SQUARINGS))
+#: expneg is exactly 0 below -EXP_CUT: exp(-16) = 1.1e-7 (a tap weighted that little changes a
+#: result by less than 1e-6 of the centre's weight); a weight times the smallest kernel tap
+#: (1/256), squared and times a variance down to 1e-19, stays a normal float
+EXP_CUT = 16.0
+_EXP_CUT = np.float32(EXP_CUT)
+_Y_MIN = np.float32(1.0 - EXP_CUT / (1 << EXP_SQUARINGS))
 _ONE = np.float32(1.0)
 _ZERO = np.float32(0.0)
 
@@ -88,12 +94,16 @@ def depth_distance(zp, zq, gx, gy, dx, dy, sigma_z, depth_eps):
 def expneg(x):
     """Branch-free, vectorizable approximation of ``exp(x)`` for ``x <= 0``, float32.
 
-    ``(max(0, 1 + x / 1024))^1024`` by 10 squarings: exactly 1 at 0, monotone, 0 below -1024,
-    relative error about ``x^2 / 2048`` (0.05% at -1, 0.8% at -4; where it grows the weight is
-    negligible). Used for the à-trous edge-stopping weights so that the CPU loop vectorizes
-    without a vector math library; NaN-free for ``x = -inf``.
+    ``(1 + x / 1024)^1024`` by 10 squarings for ``x > -EXP_CUT``, exactly 0 below: exactly 1
+    at 0, monotone, relative error about ``x^2 / 2048`` (0.05% at -1, 0.8% at -4; where it
+    grows the weight is negligible). Used for the edge-stopping weights so that the CPU loops
+    vectorize without a vector math library. The cut keeps every intermediate power, and the
+    products of a weight with kernel taps, itself and a variance, normal floats: a subnormal
+    operand costs a microcode assist on x86 (the à-trous iterations ran 1.5-2x slower with
+    subnormal weights). NaN-free for ``x = -inf``.
     """
-    y = max(_ONE + np.float32(x) * _EXP_SCALE, _ZERO)
+    xf = np.float32(x)
+    y = max(_ONE + xf * _EXP_SCALE, _Y_MIN)
     y *= y
     y *= y
     y *= y
@@ -104,7 +114,7 @@ def expneg(x):
     y *= y
     y *= y
     y *= y
-    return y
+    return y if xf > -_EXP_CUT else _ZERO
 
 
 @njit(cache=True, inline="always")
