@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pyvista as pv
 
-from plugins.renderers.pathtracer.bvh import build_bvh, pack_nodes
-from plugins.renderers.pathtracer.traverse import closest_hit, occluded
+from plugins.renderers.pathtracer.bvh import build_bvh, pack_wide
+from plugins.renderers.pathtracer.traverse import closest_hit, occluded, stack_size
 
 
 def _brute(tri, o, d):
@@ -29,8 +29,12 @@ def _brute(tri, o, d):
 
 def _prepare(verts):
     bounds, child, count, order, depth = build_bvh(verts)
-    nodes_f, nodes_i = pack_nodes(bounds, child, count)
+    nodes_f, nodes_i = pack_wide(bounds, child, count)
     return verts[order], nodes_f, nodes_i, count, order, depth
+
+
+def _stacks(depth):
+    return np.empty(stack_size(depth), np.int32), np.empty(stack_size(depth), np.float32)
 
 
 def test_bvh_closest_hit_matches_brute_force():
@@ -41,7 +45,7 @@ def test_bvh_closest_hit_matches_brute_force():
     tri_v = np.ascontiguousarray(ordered.reshape(-1, 9))
     assert sorted(order.tolist()) == list(range(3000))
     assert count.sum() == 3000  # every triangle in exactly one leaf
-    stack_n, stack_t = np.empty(depth + 2, np.int32), np.empty(depth + 2)
+    stack_n, stack_t = _stacks(depth)
     tri64 = verts.astype(np.float64)
     hits = 0
     for _ in range(400):
@@ -58,9 +62,9 @@ def test_bvh_closest_hit_matches_brute_force():
             p = tri64[order[k]]
             hit = (1 - b1 - b2) * p[0] + b1 * p[1] + b2 * p[2]
             assert np.allclose(hit, o + t * d, atol=1e-9)
-        assert occluded(*o, *d, np.inf, -1, tri_v, nodes_f, nodes_i, stack_n) == (kb >= 0)
+        assert occluded(*o, *d, np.inf, -1, tri_v, nodes_f, nodes_i, stack_n, stack_t) == (kb >= 0)
         if kb >= 0:  # a shadow ray that stops short of the nearest hit is not occluded
-            assert not occluded(*o, *d, tb * 0.999, -1, tri_v, nodes_f, nodes_i, stack_n)
+            assert not occluded(*o, *d, tb * 0.999, -1, tri_v, nodes_f, nodes_i, stack_n, stack_t)
     assert hits > 50
 
 
@@ -69,7 +73,7 @@ def test_single_triangle_hit_and_skip():
     verts[0] = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
     ordered, nodes_f, nodes_i, count, order, depth = _prepare(verts)
     tri_v = ordered.reshape(-1, 9)
-    sn, st = np.empty(depth + 2, np.int32), np.empty(depth + 2)
+    sn, st = _stacks(depth)
     k, t, _, _ = closest_hit(0.2, 0.2, 1.0, 0.0, 0.0, -1.0, np.inf, -1, tri_v, nodes_f, nodes_i, sn, st)
     assert k == 0 and abs(t - 1.0) < 1e-12
     k, _, _, _ = closest_hit(0.2, 0.2, 1.0, 0.0, 0.0, -1.0, np.inf, 0, tri_v, nodes_f, nodes_i, sn, st)
@@ -83,7 +87,7 @@ def test_watertight_closed_mesh_has_no_cracks():
     verts = np.asarray(shell.points, np.float32)[faces]
     ordered, nodes_f, nodes_i, count, order, depth = _prepare(verts)
     tri_v = np.ascontiguousarray(ordered.reshape(-1, 9))
-    sn, st = np.empty(depth + 2, np.int32), np.empty(depth + 2)
+    sn, st = _stacks(depth)
     targets = np.concatenate([shell.points, 0.5 * (verts[:, 0] + verts[:, 1]), 0.5 * (verts[:, 1] + verts[:, 2])])
     origin = np.array([0.01, -0.02, 0.03])
     misses = 0

@@ -3,19 +3,21 @@
 The same filter as :func:`plugins.filters.svgf.atrous.atrous_pixel` (same taps and weights),
 laid out for LLVM's loop vectorizer:
 
-* **One pool.** Every plane an iteration reads (surface mask, depth, depth gradient, normal,
-  and each signal's colour and variance) is a row of one 2-D float32 array, :class:`PlanePool`;
-  the iterations ping-pong between two slots of signal planes in it. A tap loop then loads from
+* **One pool.** Every plane an iteration reads (surface mask, depth, depth slope, normal, and
+  each signal's colour, variance and luminance) lies in one flat float32 array,
+  :class:`PlanePool`, one plane after the other; the iterations ping-pong between two slots of
+  signal planes in it. A tap loop then loads from
   one array and updates one small per-thread array of accumulators, so the vectorizer needs a
   single run-time aliasing test instead of giving up over dozens.
 * **Padding.** Planes have a zero border of ``2**iterations`` columns (the largest tap offset)
   and a row stride that is an odd multiple of 16 floats, so a tap never needs a column bounds
   test (a tap in the border has mask 0, hence weight 0) and every loop runs over a multiple
   of 16 pixels; rows outside the image are skipped a whole tap row at a time.
-* **Fused taps.** Each thread filters ``CHUNK`` pixels of a row at a time: per tap, one
-  branch-free loop computes the shared depth/normal term and, for each signal, the luminance
-  weight and the five sums (weight, colour, squared-weight variance). Rows are dealt to the
-  threads interleaved, so sky at the top of the image does not leave one thread idle.
+* **Chunks.** Each thread filters ``CHUNK`` pixels of a row at a time: per tap, one
+  branch-free loop computes the depth/normal part of the weight that the signals share, then
+  one loop per signal the luminance weight and the five sums (weight, colour, squared-weight
+  variance). Rows are dealt to the threads interleaved, so sky at the top of the image does
+  not leave one thread idle.
 
 Variance planes are float32 and clamped at ``VAR_MAX`` when packed (a sum of 25 weighted
 variances then stays finite); colour and weight sums are float32 (25 terms).
@@ -51,8 +53,9 @@ _ONE = np.float32(1.0)
 # regions (of CHUNK floats) of a thread's scratch array, as flat offsets: per signal the sums
 # (weight, red, green, blue, variance) and the centre's terms (luminance, inverse luminance
 # scale, luminance difference limit), signal 1's regions _SIGNAL_1 after signal 0's; then the
-# prefilter's weight sum. Flat indices are uint64 throughout (no wraparound tests; Numba turns
-# a mix of int64 and uint64 into float64, so every constant added to one is uint64 too).
+# prefilter's weight sum, and the current tap's shared weight factor and exponent. Flat indices
+# are uint64 throughout (no wraparound tests; Numba turns a mix of int64 and uint64 into
+# float64, so every constant added to one is uint64 too).
 _OW, _OR, _OG, _OB, _OV, _OLP, _OIL, _OLIM = (np.uint64(k * CHUNK) for k in range(8))
 _SIGNAL_1 = np.uint64(8 * CHUNK)
 _OPDEN = np.uint64(16 * CHUNK)

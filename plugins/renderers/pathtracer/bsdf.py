@@ -73,7 +73,7 @@ def _plastic_spec_prob(wo_z, f0, albedo_lum):
     return min(max(p, 0.1), 0.9)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _ggx_terms(wo, wi, a2):
     """(D, G2, G1(wo), cos(wo, h)) of the half vector of wo and wi (both above the surface)."""
     h = normalize((wo[0] + wi[0], wo[1] + wi[1], wo[2] + wi[2]))
@@ -84,7 +84,7 @@ def _ggx_terms(wo, wi, a2):
     return d, 1.0 / (1.0 + lo + li), 1.0 / (1.0 + lo), c
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def bsdf_eval(kind, alb, alpha, spec, wo, wi):
     """``f * cos(theta_i)`` (r, g, b) and the pdf of :func:`bsdf_sample` for wi.
 
@@ -122,7 +122,7 @@ def bsdf_eval(kind, alb, alpha, spec, wo, wi):
     )
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _sample_vndf(wo, a, u1, u2):
     vh = normalize((a * wo[0], a * wo[1], wo[2]))
     lensq = vh[0] * vh[0] + vh[1] * vh[1]
@@ -145,7 +145,7 @@ def _sample_vndf(wo, a, u1, u2):
     return normalize((a * nh[0], a * nh[1], max(nh[2], 0.0)))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def bsdf_sample(kind, alb, alpha, spec, ior, wo, u1, u2, u3):
     """Sample an incident direction.
 

@@ -6,7 +6,7 @@ the exact one; ``child`` (N,) int32 is the index of the left child of an interio
 child is ``child + 1``) or the first triangle of a leaf; ``count`` (N,) int32 is 0 for interior
 nodes and the number of triangles of a leaf. Triangles are renumbered so that each leaf covers a
 contiguous range; ``order`` maps new positions to the input triangle indices. Traversal uses the
-packed form of :func:`pack_nodes` (rows of child pairs).
+8-wide form of :func:`pack_wide`.
 
 Reference: Wald, "On fast construction of SAH-based bounding volume hierarchies", RT 2007
 (binned SAH); costs: traversal step 1, triangle test 1.
@@ -195,46 +195,96 @@ def build_bvh(vertices, leaf_size=2):
 
 
 LEAF_BITS = 6  # a leaf code holds the triangle count in its low bits (count < 64)
+WIDTH = 8  # children per wide node (the lanes of :func:`.simd.box8`)
+ROW = 64  # float32 / int32 columns per wide node row: 6 planes x 8 lanes, 8 child codes, 8 unused
 
 
-def pack_nodes(bounds: np.ndarray, child: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The tree as rows of child pairs: one 64-byte row per interior node, aligned to a cache line.
+@njit(cache=True, error_model="numpy")
+def _collapse(bounds, child, count, rows_f, rows_i):
+    """Fill wide rows from the binary tree; returns the number of rows used."""
+    n_rows = 1
+    work = np.empty(len(bounds) + 1, np.int64)  # (binary node, row) pairs waiting to be filled
+    work_row = np.empty(len(bounds) + 1, np.int64)
+    cand = np.empty(WIDTH, np.int64)
+    work[0] = 0
+    work_row[0] = 0
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        b = work[sp]
+        row = work_row[sp]
+        if count[b] > 0:  # a leaf root: one lane
+            cand[0] = b
+            m = 1
+        else:
+            cand[0] = child[b]
+            cand[1] = child[b] + 1
+            m = 2
+            # open the interior candidate of largest surface area until the node is full
+            while m < WIDTH:
+                best = -1
+                best_area = -1.0
+                for k in range(m):
+                    c = cand[k]
+                    if count[c] == 0:
+                        dx = np.float64(bounds[c, 3]) - bounds[c, 0]
+                        dy = np.float64(bounds[c, 4]) - bounds[c, 1]
+                        dz = np.float64(bounds[c, 5]) - bounds[c, 2]
+                        area = dx * dy + dy * dz + dz * dx
+                        if area > best_area:
+                            best_area = area
+                            best = k
+                if best < 0:
+                    break
+                c = cand[best]
+                cand[best] = child[c]
+                cand[m] = child[c] + 1
+                m += 1
+        for k in range(m):
+            c = cand[k]
+            for p in range(6):
+                rows_f[row, WIDTH * p + k] = bounds[c, p]
+            if count[c] > 0:
+                rows_i[row, 6 * WIDTH + k] = -1 - ((child[c] << LEAF_BITS) | count[c])
+            else:
+                rows_i[row, 6 * WIDTH + k] = n_rows
+                work[sp] = c
+                work_row[sp] = n_rows
+                sp += 1
+                n_rows += 1
+    return n_rows
 
-    Row ``r`` describes the two children of one interior node. Columns 0-11 (float32) are their
-    boxes in pairs, (left, right) for each of min x, min y, min z, max x, max y, max z, so that
-    one row fetch tests both children and each slab is computed for the pair. Columns 12 and 13
-    (int32 view) are the children's codes: a row index for an interior child, or
-    ``-1 - (first << LEAF_BITS | count)`` for a leaf of ``count`` triangles from ``first``.
-    Row 0 is a virtual parent whose left child is the root and whose right child is an empty box
-    (never entered), so traversal starts at row 0 without a special case.
+
+def pack_wide(bounds: np.ndarray, child: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The binary tree collapsed into an 8-wide one, one 256-byte row per node, cache-line aligned.
+
+    Each wide node takes the children of a binary node and repeatedly replaces the interior one
+    of largest surface area by its two children, until it has 8 children or only leaves (the
+    usual collapse of a binary SAH tree). Row ``r``: columns ``8 * p + k`` (float32) are plane
+    ``p`` (min x, min y, min z, max x, max y, max z) of child ``k``, so that each plane of all 8
+    children is one vector load (:func:`.simd.box8`). Columns 48-55 (int32 view) are the
+    children's codes: a row index for an interior child, or ``-1 - (first << LEAF_BITS | count)``
+    for a leaf of ``count`` triangles from ``first``. Unused lanes hold an empty box (min +inf,
+    max -inf, never entered) and the code of an empty leaf (-1). Row 0 is the root; a tree that
+    is a single leaf gets a root row with that leaf as its only child.
 
     Returns
     -------
-    nodes_f : ndarray (R, 16) float32
-    nodes_i : ndarray (R, 16) int32
+    nodes_f : ndarray (R, 64) float32
+    nodes_i : ndarray (R, 64) int32
         Two views of the same 64-byte-aligned memory.
     """
     n = len(bounds)
     if len(count) and (int(count.max()) >= 1 << LEAF_BITS or int(child.max()) >= (1 << (31 - LEAF_BITS)) - 1):
         raise ValueError("BVH too large for the packed node codes")
-    interior = np.flatnonzero(count == 0)
-    row_of = np.full(n, -1, np.int64)
-    row_of[interior] = np.arange(1, len(interior) + 1)
-    code = np.where(count > 0, -1 - ((child.astype(np.int64) << LEAF_BITS) | count), 0)
-    code[interior] = row_of[interior]
-    rows = len(interior) + 1
-    buf = np.zeros(rows * 16 + 16, np.int32)
+    work_i = np.zeros((n, ROW), np.int32)  # enough rows: each but the root is an interior binary node
+    work_f = work_i.view(np.float32)
+    work_f[:, :3 * WIDTH] = np.inf
+    work_f[:, 3 * WIDTH:6 * WIDTH] = -np.inf
+    work_i[:, 6 * WIDTH:7 * WIDTH] = -1  # unused lanes: an empty leaf
+    rows = _collapse(bounds, child, count, work_f, work_i)
+    buf = np.empty(rows * ROW + 16, np.int32)
     start = (-buf.ctypes.data % 64) // 4
-    nodes_i = buf[start:start + rows * 16].reshape(rows, 16)
-    nodes_f = nodes_i.view(np.float32)
-    left = child[interior]
-    for k in range(6):
-        nodes_f[1:, 2 * k] = bounds[left, k]
-        nodes_f[1:, 2 * k + 1] = bounds[left + 1, k]
-        nodes_f[0, 2 * k] = bounds[0, k]
-        nodes_f[0, 2 * k + 1] = np.inf if k < 3 else -np.inf
-    nodes_i[1:, 12] = code[left]
-    nodes_i[1:, 13] = code[left + 1]
-    nodes_i[0, 12] = code[0]
-    nodes_i[0, 13] = code[0]
-    return nodes_f, nodes_i
+    nodes_i = buf[start:start + rows * ROW].reshape(rows, ROW)
+    nodes_i[:] = work_i[:rows]
+    return nodes_i.view(np.float32), nodes_i

@@ -28,15 +28,16 @@ from numba import njit, prange
 from .bsdf import DIELECTRIC, bsdf_eval, bsdf_sample, is_delta
 from .lights import infinite_pdf, infinite_radiance, sample_light
 from .rng import stream_key, uniform
-from .traverse import closest_hit, occluded
+from .schedule import take
+from .traverse import closest_hit, occluded, stack_size
 from .vecmath import cross, dot, normalize, onb, to_local, to_world
 
 MIS, LIGHT_ONLY, BSDF_ONLY = 0, 1, 2
 STRATEGIES = {"mis": MIS, "light": LIGHT_ONLY, "bsdf": BSDF_ONLY}
-TASK = 16  # pixels per iteration of the parallel loops: one traversal stack each, dynamic balancing
+TASK = 64  # pixels per task of the parallel loops, taken in turn by the threads (see .schedule)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def surface(tri, b1, b2, tri_v, tri_n, tri_uv):
     """Position, unit geometric normal (winding order), unit shading normal and uv of a hit."""
     b0 = 1.0 - b1 - b2
@@ -57,7 +58,7 @@ def surface(tri, b1, b2, tri_v, tri_n, tri_uv):
     return p, ng, ns, u, v
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def albedo_at(m, u, v, base, mat_tex, tex_data, tex_off, tex_w, tex_h):
     """``base[m]`` times material ``m``'s texture (bilinear, wrapping; texel (r, c) is centred on
     ``u = (c + 0.5) / w``, ``v = 1 - (r + 0.5) / h``)."""
@@ -98,7 +99,7 @@ def _bilinear(tex_data, k00, k01, k10, k11, fx, fy):
     return (1 - fy) * ((1 - fx) * a00 + fx * a01) + fy * ((1 - fx) * a10 + fx * a11)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, max_depth, rr_depth,
                  strategy, stack_n, stack_t):
     """Radiance of one path starting at a known first hit.
@@ -182,7 +183,7 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                         so = (p[0] + ng[0] * eps, p[1] + ng[1] * eps, p[2] + ng[2] * eps)
                         tmax = ldist * (1.0 - 1e-4) if ldist < np.inf else np.inf
                         visible = not occluded(so[0], so[1], so[2], ld[0], ld[1], ld[2], tmax, ltri,
-                                               tri_v, nodes_f, nodes_i, stack_n)
+                                               tri_v, nodes_f, nodes_i, stack_n, stack_t)
                     if visible:
                         if bounce == 0:
                             vhits += 1
@@ -248,30 +249,77 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
     return lr, lg, lb, dr, dg, db, vrays, vhits
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def pixel_ray(i, width, height, eye, right, up, forward, tan_half):
+    """Origin and unit direction of the ray through the centre of row-major pixel ``i``, with the
+    operations (and so the rounding) of :meth:`harness.CameraPath.primary_rays`."""
+    row = i // width
+    col = i - row * width
+    sx = ((col + 0.5) / width * 2.0 - 1.0) * tan_half * (width / height)
+    sy = (1.0 - (row + 0.5) / height * 2.0) * tan_half
+    dx = forward[0] + sx * right[0] + sy * up[0]
+    dy = forward[1] + sx * right[1] + sy * up[1]
+    dz = forward[2] + sx * right[2] + sy * up[2]
+    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return eye, (dx / norm, dy / norm, dz / norm)
+
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def first_hits(origins, dirs, geom, depth):
-    """Closest hit of each primary ray: (tri int32, b1, b2, t) per ray; tri = -1 for a miss."""
+def first_hits(eye, right, up, forward, tan_half, width, height, geom, depth, threads):
+    """Primary rays through the pixel centres of a pinhole camera and their closest hits.
+
+    Parameters
+    ----------
+    eye, right, up, forward : 3-tuples of float
+        Camera position and basis (:meth:`harness.CameraPath.basis`).
+    tan_half : float
+        Tangent of half the vertical field of view.
+    width, height : int
+    geom, depth : scene arrays (see :class:`.scenedata.SceneData`).
+    threads : int
+        Workers taking tasks in turn (``numba.get_num_threads()``; see :mod:`.schedule`).
+
+    Returns
+    -------
+    origins, dirs : ndarray (N, 3) float64
+        The rays, row-major pixel order.
+    tri : ndarray (N,) int32
+        Triangle hit, -1 for a miss.
+    bary : ndarray (N, 3) float64
+        Barycentric weights of corners 1 and 2, and the distance.
+    """
     tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i = geom
-    n = origins.shape[0]
+    n = width * height
+    origins = np.empty((n, 3))
+    dirs = np.empty((n, 3))
     tri = np.empty(n, np.int32)
     bary = np.empty((n, 3))
-    for task in prange((n + TASK - 1) // TASK):
-        stack_n = np.empty(depth + 2, np.int32)
-        stack_t = np.empty(depth + 2)
-        for i in range(task * TASK, min(task * TASK + TASK, n)):
-            h, t, b1, b2 = closest_hit(origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0], dirs[i, 1],
-                                       dirs[i, 2], np.inf, -1, tri_v, nodes_f, nodes_i, stack_n, stack_t)
-            tri[i] = h
-            bary[i, 0] = b1
-            bary[i, 1] = b2
-            bary[i, 2] = t
-    return tri, bary
+    tasks = (n + TASK - 1) // TASK
+    counter = np.zeros(1, np.int64)
+    for _ in prange(min(max(threads, 1), tasks)):
+        stack_n = np.empty(stack_size(depth), np.int32)
+        stack_t = np.empty(stack_size(depth), np.float32)
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK, min(task * TASK + TASK, n)):
+                o, d = pixel_ray(i, width, height, eye, right, up, forward, tan_half)
+                origins[i, 0], origins[i, 1], origins[i, 2] = o
+                dirs[i, 0], dirs[i, 1], dirs[i, 2] = d
+                h, t, b1, b2 = closest_hit(o[0], o[1], o[2], d[0], d[1], d[2], np.inf, -1, tri_v, nodes_f, nodes_i,
+                                           stack_n, stack_t)
+                tri[i] = h
+                bary[i, 0] = b1
+                bary[i, 1] = b2
+                bary[i, 2] = t
+    return origins, dirs, tri, bary
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, depth, max_depth, rr_depth,
                        strategy, seed, frame, start, count, acc, acc_sq, acc_direct, shadow,
-                       want_moments, want_split):
+                       want_moments, want_split, threads):
     """Add ``count[p]`` samples, from sample index ``start[p]``, to pixel ``p``'s sums (in place).
 
     Parameters
@@ -290,45 +338,58 @@ def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, de
         Running counts of first-hit light samples and of those that reached their light.
     want_moments, want_split : bool
         Whether to update ``acc_sq`` and ``acc_direct``.
+    threads : int
+        Workers taking tasks in turn (``numba.get_num_threads()``; see :mod:`.schedule`).
     """
     n = origins.shape[0]
-    for task in prange((n + TASK - 1) // TASK):
-        stack_n = np.empty(depth + 2, np.int32)
-        stack_t = np.empty(depth + 2)
-        for i in range(task * TASK, min(task * TASK + TASK, n)):
-            c = count[i]
-            if c <= 0:
-                continue
-            o = (origins[i, 0], origins[i, 1], origins[i, 2])
-            d = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
-            s0, s1, s2 = acc[i, 0], acc[i, 1], acc[i, 2]
-            q0, q1, q2 = acc_sq[i, 0], acc_sq[i, 1], acc_sq[i, 2]
-            d0, d1, d2 = acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2]
-            rays = 0
-            hits = 0
-            for k in range(c):
-                key = stream_key(seed, frame, i, start[i] + k)
-                r, g, b, xr, xg, xb, vr, vh = trace_sample(key, o, d, tri[i], bary[i, 0], bary[i, 1], geom, mats,
-                                                           lights, lp, eps, max_depth, rr_depth, strategy,
-                                                           stack_n, stack_t)
-                if not (math.isfinite(r) and math.isfinite(g) and math.isfinite(b)
-                        and math.isfinite(xr) and math.isfinite(xg) and math.isfinite(xb)):
-                    r = g = b = xr = xg = xb = 0.0
-                s0 += r
-                s1 += g
-                s2 += b
-                if want_moments:
-                    q0 += r * r
-                    q1 += g * g
-                    q2 += b * b
+    tasks = (n + TASK - 1) // TASK
+    counter = np.zeros(1, np.int64)
+    for _ in prange(min(max(threads, 1), tasks)):
+        stack_n = np.empty(stack_size(depth), np.int32)
+        stack_t = np.empty(stack_size(depth), np.float32)
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK, min(task * TASK + TASK, n)):
+                c = count[i]
+                if c <= 0:
+                    continue
+                o = (origins[i, 0], origins[i, 1], origins[i, 2])
+                d = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
+                s0, s1, s2 = acc[i, 0], acc[i, 1], acc[i, 2]
+                q0 = q1 = q2 = d0 = d1 = d2 = 0.0
+                if want_moments:  # untouched otherwise: no page of an unused sum is ever faulted in
+                    q0, q1, q2 = acc_sq[i, 0], acc_sq[i, 1], acc_sq[i, 2]
                 if want_split:
-                    d0 += xr
-                    d1 += xg
-                    d2 += xb
-                rays += vr
-                hits += vh
-            acc[i, 0], acc[i, 1], acc[i, 2] = s0, s1, s2
-            acc_sq[i, 0], acc_sq[i, 1], acc_sq[i, 2] = q0, q1, q2
-            acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2] = d0, d1, d2
-            shadow[i, 0] += rays
-            shadow[i, 1] += hits
+                    d0, d1, d2 = acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2]
+                rays = 0
+                hits = 0
+                for k in range(c):
+                    key = stream_key(seed, frame, i, start[i] + k)
+                    r, g, b, xr, xg, xb, vr, vh = trace_sample(key, o, d, tri[i], bary[i, 0], bary[i, 1], geom, mats,
+                                                               lights, lp, eps, max_depth, rr_depth, strategy,
+                                                               stack_n, stack_t)
+                    if not (math.isfinite(r) and math.isfinite(g) and math.isfinite(b)
+                            and math.isfinite(xr) and math.isfinite(xg) and math.isfinite(xb)):
+                        r = g = b = xr = xg = xb = 0.0
+                    s0 += r
+                    s1 += g
+                    s2 += b
+                    if want_moments:
+                        q0 += r * r
+                        q1 += g * g
+                        q2 += b * b
+                    if want_split:
+                        d0 += xr
+                        d1 += xg
+                        d2 += xb
+                    rays += vr
+                    hits += vh
+                acc[i, 0], acc[i, 1], acc[i, 2] = s0, s1, s2
+                if want_moments:
+                    acc_sq[i, 0], acc_sq[i, 1], acc_sq[i, 2] = q0, q1, q2
+                if want_split:
+                    acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2] = d0, d1, d2
+                shadow[i, 0] += rays
+                shadow[i, 1] += hits

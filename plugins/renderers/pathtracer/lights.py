@@ -54,7 +54,7 @@ def _rot_y(x, z, angle):
     return c * x + s * z, -s * x + c * z
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _map_pixel(d, lp, h, w):
     x, z = _rot_y(d[0], d[2], -lp[ENV_ROT])
     u = 0.5 + math.atan2(x, -z) / (2.0 * math.pi)
@@ -64,7 +64,7 @@ def _map_pixel(d, lp, h, w):
     return row, col
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def infinite_radiance(d, lp, env_img):
     """Radiance (r, g, b) arriving from the unit direction ``d`` from sun and environment."""
     r = g = b = 0.0
@@ -90,7 +90,7 @@ def infinite_radiance(d, lp, env_img):
     return r, g, b
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def infinite_pdf(d, lp, env_img, cdf_rows, cdf_cols):
     """Solid-angle density with which :func:`sample_light` produces the escaping direction ``d``."""
     pdf = 0.0
@@ -112,7 +112,7 @@ def infinite_pdf(d, lp, env_img, cdf_rows, cdf_cols):
     return pdf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, emit_tri, emit_cdf, tri_light_pdf,
                  env_img, cdf_rows, cdf_cols):
     """Sample a light as seen from point ``p``.

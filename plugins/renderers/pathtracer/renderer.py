@@ -45,11 +45,13 @@ class FrameSetup:
         if scene.camera is None:
             raise ValueError(f"{OWNER}: scene {scene.name!r} has no camera")
         self.scene, self.index, self.width, self.height, self.data = scene, frame_index, width, height, data
-        o, d = scene.camera.primary_rays(frame_index, width, height)
-        self.origins = np.ascontiguousarray(o.reshape(-1, 3), np.float64)
-        self.dirs = np.ascontiguousarray(d.reshape(-1, 3), np.float64)
-        with numba.parallel_chunksize(1):
-            self.tri, self.bary = first_hits(self.origins, self.dirs, data.geometry(), data.depth)
+        cam = scene.camera
+        right, up, forward = (tuple(float(x) for x in v) for v in cam.basis(frame_index))
+        eye = tuple(float(x) for x in cam.eye(frame_index))
+        tan_half = float(np.tan(np.radians(cam.fov) / 2.0))
+        self.origins, self.dirs, self.tri, self.bary = first_hits(eye, right, up, forward, tan_half, width,
+                                                                  height, data.geometry(), data.depth,
+                                                                  numba.get_num_threads())
         self._gbuffer = None
 
     def gbuffer(self) -> dict:
@@ -150,12 +152,10 @@ class PathTracer:
         """Take ``counts[p]`` more samples in pixel ``p``, continuing its stream (in place)."""
         counts = np.ascontiguousarray(counts, np.int64).ravel()
         data = setup.data
-        with numba.parallel_chunksize(1):
-            accumulate_samples(setup.origins, setup.dirs, setup.tri, setup.bary, data.geometry(),
-                               data.materials(), data.lights(), data.lp, data.eps, data.depth,
-                               self._max_depth(setup.scene), self.rr_depth, STRATEGIES[self.strategy],
-                               int(seed), int(setup.index), state.spp, counts, state.acc, state.acc_sq,
-                               state.acc_direct, state.shadow, moments, split)
+        accumulate_samples(setup.origins, setup.dirs, setup.tri, setup.bary, data.geometry(), data.materials(),
+                           data.lights(), data.lp, data.eps, data.depth, self._max_depth(setup.scene), self.rr_depth,
+                           STRATEGIES[self.strategy], int(seed), int(setup.index), state.spp, counts, state.acc,
+                           state.acc_sq, state.acc_direct, state.shadow, moments, split, numba.get_num_threads())
         state.spp += counts
 
     # -- frames --------------------------------------------------------------------------------

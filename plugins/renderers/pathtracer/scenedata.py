@@ -10,7 +10,7 @@ import numpy as np
 from harness import Material, Scene, read_texture
 
 from . import lights as L
-from .bvh import build_bvh, pack_nodes
+from .bvh import build_bvh, pack_wide
 
 _KIND_CODES = {"diffuse": 0, "conductor": 1, "plastic": 2, "dielectric": 3, "mirror": 4}
 _ENV_CODES = {"constant": L.ENV_CONSTANT, "sky": L.ENV_SKY, "map": L.ENV_MAP}
@@ -31,7 +31,7 @@ class SceneData:
         Corner positions and shading normals ``(v0, v1, v2)``.
     tri_uv : ndarray (T, 6) float32
     tri_mat, tri_obj : ndarray (T,) int32
-    nodes_f, nodes_i : the BVH (see :func:`.bvh.pack_nodes`); ``depth`` its number of levels.
+    nodes_f, nodes_i : the BVH (see :func:`.bvh.pack_wide`); ``depth`` its number of levels.
     mat_* : per-material arrays; ``tex_*`` all textures in one flat float32 array.
     emit_tri, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols : lights (see :mod:`.lights`).
     eps : float
@@ -176,7 +176,7 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
         raise ValueError(f"pathtracer: scene {scene.name!r} uses material index {int(tmat.max())} "
                          f"but has {n_mat} materials")
     bounds, child, count, order, depth = build_bvh(verts)
-    nodes_f, nodes_i = pack_nodes(bounds, child, count)
+    nodes_f, nodes_i = pack_wide(bounds, child, count)
     verts, norms, uvs, tmat, tobj = verts[order], norms[order], uvs[order], tmat[order], tobj[order]
     tri_v = np.ascontiguousarray(verts.reshape(-1, 9))
     tri_n = np.ascontiguousarray(norms.reshape(-1, 9))

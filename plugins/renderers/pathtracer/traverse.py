@@ -1,17 +1,17 @@
-"""Ray queries against the BVH: closest hit and any hit (shadow rays).
+"""Ray queries against the 8-wide BVH: closest hit and any hit (shadow rays).
 
-Traversal is iterative with an explicit stack (near child first, far child pushed with its entry
-distance so that it is skipped once a closer hit is known). Each step fetches one 64-byte row that
-holds both children's boxes (:func:`.bvh.pack_nodes`) and tests the two boxes with the
-precomputed entry planes of the ray; the box and triangle tests are inlined into the loops.
-Ray-triangle tests follow the watertight algorithm of Woop, Benthin and Wald (JCGT 2013): the ray
-is sheared so that it points along +z, and the 2D edge functions are evaluated in double
-precision, so a ray through a shared edge or vertex hits at least one of the triangles that share
-it (no cracks between triangles).
+Traversal is iterative with an explicit stack. Each step tests the ray against the eight child
+boxes of one wide node at once (:func:`.simd.box8`, packed single-precision SIMD with
+conservative rounding, so no box the ray meets is missed); of the children hit, the nearest is
+visited next and the others are pushed, farthest deepest (closest hit) so that they are skipped
+once a closer hit is known. Ray-triangle tests follow the watertight algorithm of Woop, Benthin
+and Wald (JCGT 2013): the ray is sheared so that it points along +z, and the 2D edge functions are
+evaluated in double precision, so a ray through a shared edge or vertex hits at least one of the
+triangles that share it (no cracks between triangles).
 
 Geometry arrays: ``tri_v`` (T, 9) float32 rows ``v0 v1 v2``; ``nodes_f`` and ``nodes_i``, the two
-views of :func:`.bvh.pack_nodes`. ``stack_n`` (int32) and ``stack_t`` (float64) are scratch arrays
-of at least the tree depth, allocated by the caller (once per group of pixels).
+views of :func:`.bvh.pack_wide`. ``stack_n`` (int32) and ``stack_t`` (float32) are scratch arrays
+of at least :func:`stack_size` entries, allocated by the caller (once per thread).
 """
 
 from __future__ import annotations
@@ -19,10 +19,22 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bvh import LEAF_BITS
+from .bvh import LEAF_BITS, WIDTH
+from .simd import FAR_SCALE, box8, lowest_bit, prefetch
 
 INF = np.inf
 LEAF_MASK = (1 << LEAF_BITS) - 1
+CHILD_COL = 6 * WIDTH
+F32_INF = np.float32(np.inf)
+WIDEN = 2.0**-22  # relative outward shift of rounded origins: at least 1.5 float32 ulps after rounding
+TINY = 2.0**-126  # the same near 0 (the smallest normal float32)
+
+
+@njit(cache=True, error_model="numpy")
+def stack_size(depth):
+    """Stack entries that traversal of a tree of ``depth`` binary levels needs (plus the 8-lane
+    scratch that :func:`.simd.box8` writes above the top)."""
+    return (WIDTH - 1) * depth + WIDTH + 1
 
 
 @njit(cache=True, error_model="numpy")
@@ -34,39 +46,43 @@ def _pick(x, y, z, k):
     return z
 
 
-@njit(cache=True, error_model="numpy")
-def _inv(d):
-    if d != 0.0:
-        return 1.0 / d
-    return 1e300
+@njit(cache=True, error_model="numpy", inline="always")
+def _up(x):
+    """A float32 above ``x`` (float64), by 1.5 to 4.5 float32 ulps (2**-126 above 0)."""
+    return np.float32(x + (abs(x) * WIDEN + TINY))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _boxes(nodes_f, r, jx, jy, jz, ox, oy, oz, ix, iy, iz, tmax):
-    """Entry distances of the ray into the two child boxes of row ``r`` (inf for a miss within tmax).
+def _down(x):
+    """A float32 below ``x`` (float64), by 1.5 to 4.5 float32 ulps (2**-126 below 0)."""
+    return np.float32(x - (abs(x) * WIDEN + TINY))
 
-    ``jx, jy, jz`` are the columns of the planes the ray enters through (the min pair for a
-    non-negative inverse direction, the max pair otherwise), so that each slab needs no min/max:
-    ``(lo - o) * i <= (hi - o) * i`` holds for ``i > 0`` in floating point too, so the distances
-    are exactly those of the two-sided slab test.
-    """
-    lx0 = (np.float64(nodes_f[r, jx]) - ox) * ix
-    rx0 = (np.float64(nodes_f[r, jx + 1]) - ox) * ix
-    ly0 = (np.float64(nodes_f[r, jy]) - oy) * iy
-    ry0 = (np.float64(nodes_f[r, jy + 1]) - oy) * iy
-    lz0 = (np.float64(nodes_f[r, jz]) - oz) * iz
-    rz0 = (np.float64(nodes_f[r, jz + 1]) - oz) * iz
-    lx1 = (np.float64(nodes_f[r, 6 - jx]) - ox) * ix
-    rx1 = (np.float64(nodes_f[r, 7 - jx]) - ox) * ix
-    ly1 = (np.float64(nodes_f[r, 10 - jy]) - oy) * iy
-    ry1 = (np.float64(nodes_f[r, 11 - jy]) - oy) * iy
-    lz1 = (np.float64(nodes_f[r, 14 - jz]) - oz) * iz
-    rz1 = (np.float64(nodes_f[r, 15 - jz]) - oz) * iz
-    ln = max(lx0, ly0, lz0, 0.0)
-    rn = max(rx0, ry0, rz0, 0.0)
-    lf = min(lx1, ly1, lz1, tmax) * (1.0 + 1e-12)
-    rf = min(rx1, ry1, rz1, tmax) * (1.0 + 1e-12)
-    return (ln if ln <= lf else INF), (rn if rn <= rf else INF)
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _axis(o, d):
+    """Near-plane origin, far-plane origin, inverse direction and near-plane offset of one axis."""
+    if d == 0.0:
+        return _up(o), _down(o), F32_INF, 0
+    inv = np.float32(1.0 / d)
+    if d > 0.0:
+        return _up(o), _down(o), inv, 0
+    return _down(o), _up(o), inv, 3 * WIDTH
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def ray_setup(ox, oy, oz, dx, dy, dz, tmax):
+    """Per-ray constants of :func:`.simd.box8`: the float32 tuple and the near-plane columns."""
+    nx, fx, ix, cx = _axis(ox, dx)
+    ny, fy, iy, cy = _axis(oy, dy)
+    nz, fz, iz, cz = _axis(oz, dz)
+    return (nx, ny, nz, fx, fy, fz, ix, iy, iz, _up(tmax) if tmax < INF else F32_INF), (cx, WIDTH + cy,
+                                                                                       2 * WIDTH + cz)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _with_tmax(ray, tmax):
+    """The tuple of :func:`ray_setup` with a new (closer) ``tmax``."""
+    return (ray[0], ray[1], ray[2], ray[3], ray[4], ray[5], ray[6], ray[7], ray[8], _up(tmax))
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -102,7 +118,7 @@ def _triangle(tri_v, i, px, py, pz, kx, ky, kz, sx, sy, sz, tmax):
     return t, v / det, w / det
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def _shear(dx, dy, dz):
     adx, ady, adz = abs(dx), abs(dy), abs(dz)
     kz = 0
@@ -121,14 +137,13 @@ def _shear(dx, dy, dz):
     return kx, ky, kz, sx, sy, sz
 
 
-@njit(cache=True, error_model="numpy")
-def _setup(dx, dy, dz):
-    """Per-ray constants of the box test: inverse direction and entry-plane columns."""
-    ix, iy, iz = _inv(dx), _inv(dy), _inv(dz)
-    jx = 0 if ix >= 0.0 else 6
-    jy = 2 if iy >= 0.0 else 8
-    jz = 4 if iz >= 0.0 else 10
-    return ix, iy, iz, jx, jy, jz
+@njit(cache=True, error_model="numpy", inline="always")
+def _prefetch_child(nodes_f, tri_v, code):
+    """Ask for the node row, or the leaf's first triangle rows, of child ``code``."""
+    if code >= 0:
+        prefetch(nodes_f, code, 4)
+    else:
+        prefetch(tri_v, (-1 - code) >> LEAF_BITS, 2)
 
 
 @njit(cache=True, error_model="numpy")
@@ -153,16 +168,49 @@ def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, sta
     """
     kx, ky, kz, sx, sy, sz = _shear(dx, dy, dz)
     px, py, pz = _pick(ox, oy, oz, kx), _pick(ox, oy, oz, ky), _pick(ox, oy, oz, kz)
-    ix, iy, iz, jx, jy, jz = _setup(dx, dy, dz)
+    ray, cols = ray_setup(ox, oy, oz, dx, dy, dz, tmax)
+    cull = ray[9] * np.float32(FAR_SCALE)  # children entered beyond this hold no closer hit
     best = -1
     bb1 = 0.0
     bb2 = 0.0
     node = 0
     sp = 0
     while True:
-        if node < 0:
+        if node >= 0:
+            mask = box8(nodes_f, node, ray, cols, stack_t, sp)
+            if mask != 0:
+                k = lowest_bit(mask)
+                mask &= mask - 1
+                if mask == 0:
+                    node = nodes_i[node, CHILD_COL + k]
+                    continue
+                # push the children hit (distances compacted down from box8's scratch), nearest on top
+                ck = nodes_i[node, CHILD_COL + k]
+                _prefetch_child(nodes_f, tri_v, ck)
+                stack_n[sp] = ck
+                stack_t[sp] = stack_t[sp + k]
+                top = sp + 1
+                while mask != 0:
+                    k = lowest_bit(mask)
+                    mask &= mask - 1
+                    tk = stack_t[sp + k]
+                    ck = nodes_i[node, CHILD_COL + k]
+                    _prefetch_child(nodes_f, tri_v, ck)
+                    j = top
+                    while j > sp and stack_t[j - 1] < tk:
+                        stack_t[j] = stack_t[j - 1]
+                        stack_n[j] = stack_n[j - 1]
+                        j -= 1
+                    stack_t[j] = tk
+                    stack_n[j] = ck
+                    top += 1
+                sp = top - 1
+                node = stack_n[sp]
+                continue
+        else:
             leaf = -1 - node
             first = leaf >> LEAF_BITS
+            found = False
             for i in range(first, first + (leaf & LEAF_MASK)):
                 if i == skip:
                     continue
@@ -172,45 +220,44 @@ def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, sta
                     best = i
                     bb1 = b1
                     bb2 = b2
-        else:
-            tl, tr = _boxes(nodes_f, node, jx, jy, jz, ox, oy, oz, ix, iy, iz, tmax)
-            if tl != INF or tr != INF:
-                cl = nodes_i[node, 12]
-                cr = nodes_i[node, 13]
-                if tr == INF:
-                    node = cl
-                elif tl == INF:
-                    node = cr
-                elif tl <= tr:
-                    stack_n[sp] = cr
-                    stack_t[sp] = tr
-                    sp += 1
-                    node = cl
-                else:
-                    stack_n[sp] = cl
-                    stack_t[sp] = tl
-                    sp += 1
-                    node = cr
-                continue
+                    found = True
+            if found:
+                ray = _with_tmax(ray, tmax)
+                cull = ray[9] * np.float32(FAR_SCALE)
         while True:
             if sp == 0:
                 return best, tmax, bb1, bb2
             sp -= 1
-            if stack_t[sp] < tmax:
+            if stack_t[sp] <= cull:
                 node = stack_n[sp]
                 break
 
 
 @njit(cache=True, error_model="numpy")
-def occluded(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_n):
+def occluded(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_n, stack_t):
     """True if any triangle other than ``skip`` is hit at ``0 < t < tmax``."""
     kx, ky, kz, sx, sy, sz = _shear(dx, dy, dz)
     px, py, pz = _pick(ox, oy, oz, kx), _pick(ox, oy, oz, ky), _pick(ox, oy, oz, kz)
-    ix, iy, iz, jx, jy, jz = _setup(dx, dy, dz)
+    ray, cols = ray_setup(ox, oy, oz, dx, dy, dz, tmax)
     node = 0
     sp = 0
     while True:
-        if node < 0:
+        if node >= 0:
+            mask = box8(nodes_f, node, ray, cols, stack_t, sp)
+            if mask != 0:
+                k = lowest_bit(mask)
+                mask &= mask - 1
+                row = node
+                node = nodes_i[row, CHILD_COL + k]
+                while mask != 0:  # the others on the stack, in lane order
+                    k = lowest_bit(mask)
+                    mask &= mask - 1
+                    ck = nodes_i[row, CHILD_COL + k]
+                    _prefetch_child(nodes_f, tri_v, ck)
+                    stack_n[sp] = ck
+                    sp += 1
+                continue
+        else:
             leaf = -1 - node
             first = leaf >> LEAF_BITS
             for i in range(first, first + (leaf & LEAF_MASK)):
@@ -219,25 +266,6 @@ def occluded(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_
                 t, b1, b2 = _triangle(tri_v, i, px, py, pz, kx, ky, kz, sx, sy, sz, tmax)
                 if t < tmax:
                     return True
-        else:
-            tl, tr = _boxes(nodes_f, node, jx, jy, jz, ox, oy, oz, ix, iy, iz, tmax)
-            if tl != INF or tr != INF:
-                # the nearer child next, the other one on the stack
-                cl = nodes_i[node, 12]
-                cr = nodes_i[node, 13]
-                if tr == INF:
-                    node = cl
-                elif tl == INF:
-                    node = cr
-                elif tl <= tr:
-                    stack_n[sp] = cr
-                    sp += 1
-                    node = cl
-                else:
-                    stack_n[sp] = cl
-                    sp += 1
-                    node = cr
-                continue
         if sp == 0:
             return False
         sp -= 1
