@@ -14,6 +14,7 @@ import numpy as np
 from harness import CameraPath, Material, Scene, SceneObject
 
 from . import textures
+from .assemble import suite_scene
 from .lighting import sky, sun
 from .primitives import arch_panel, box, cloth, cylinder, merge, plant, rotate, to_polydata, translate
 
@@ -120,16 +121,12 @@ def build() -> Scene:
         SceneObject("plants", to_polydata(leaves)),
     ]
     camera = CameraPath(positions=[(0.7, 1.7, -1.2)], targets=[(LENGTH, 4.2, 1.0)], fov=62.0, near=0.05, far=100.0)
-    return Scene(
-        name=SPEC["name"],
-        frame_count=SPEC["frames"],
-        resolution=SPEC["resolution"],
-        tags=SPEC["tags"],
+    return suite_scene(
+        SPEC,
         objects=objects,
         materials=_materials(),
         sun=sun((0.35, 1.0, -0.45), irradiance=5.0, angular_radius=0.5),
         environment=sky(0.8),
         camera=camera,
         max_depth=5,
-        source="plugins.scenes.builtin",
     )

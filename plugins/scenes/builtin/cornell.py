@@ -8,6 +8,7 @@ import numpy as np
 
 from harness import CameraPath, Material, Scene, SceneObject
 
+from .assemble import suite_scene
 from .primitives import box, grid, merge, rotate, to_polydata, translate
 
 W = 5.56  # box width, depth and height (m)
@@ -51,14 +52,10 @@ def build() -> Scene:
     objects.append(SceneObject("light", to_polydata(lamp)))
     camera = CameraPath(positions=[(W / 2, W / 2, W + 8.0)], targets=[(W / 2, W / 2, 0.0)], fov=39.3,
                         near=0.1, far=100.0)
-    return Scene(
-        name=SPEC["name"],
-        frame_count=SPEC["frames"],
-        resolution=SPEC["resolution"],
-        tags=SPEC["tags"],
+    return suite_scene(
+        SPEC,
         objects=objects,
         materials=materials,
         camera=camera,
         max_depth=8,
-        source="plugins.scenes.builtin",
     )

@@ -13,6 +13,7 @@ import numpy as np
 from harness import CameraPath, Material, Scene, SceneObject
 
 from . import textures
+from .assemble import suite_scene
 from .lighting import sky, sun
 from .primitives import (
     arch_panel,
@@ -143,16 +144,12 @@ def build() -> Scene:
         SceneObject("plants", to_polydata(pots + greens)),
     ]
     camera = CameraPath(positions=[(2.0, 3.4, 9.5)], targets=[(-0.5, 0.6, -1.0)], fov=55.0, near=0.05, far=100.0)
-    return Scene(
-        name=SPEC["name"],
-        frame_count=SPEC["frames"],
-        resolution=SPEC["resolution"],
-        tags=SPEC["tags"],
+    return suite_scene(
+        SPEC,
         objects=objects,
         materials=_materials(),
         sun=sun((-0.45, 0.8, 0.35), irradiance=4.5, angular_radius=1.0),
         environment=sky(0.7),
         camera=camera,
         max_depth=5,
-        source="plugins.scenes.builtin",
     )

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from harness import CameraPath, Material, Scene, SceneObject
 
+from .assemble import suite_scene
 from .primitives import sphere, to_polydata
 
 RHO = 0.5
@@ -25,11 +26,8 @@ def build() -> Scene:
     material = Material("furnace", albedo=(RHO, RHO, RHO), emission=(LE, LE, LE))
     shell = sphere(1.0, 0, rings=24, segments=48).flipped()
     camera = CameraPath(positions=[(0.0, 0.0, 0.0)], targets=[(0.0, 0.0, -1.0)], fov=60.0, near=0.01, far=10.0)
-    return Scene(
-        name=SPEC["name"],
-        frame_count=SPEC["frames"],
-        resolution=SPEC["resolution"],
-        tags=SPEC["tags"],
+    return suite_scene(
+        SPEC,
         objects=[SceneObject("shell", to_polydata(shell))],
         materials=[material],
         camera=camera,
@@ -40,5 +38,4 @@ def build() -> Scene:
             "expected_radiance_truncated": LE * (1.0 - RHO ** (MAX_DEPTH + 1)) / (1.0 - RHO),
         },
         max_depth=MAX_DEPTH,
-        source="plugins.scenes.builtin",
     )

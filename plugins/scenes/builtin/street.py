@@ -13,6 +13,7 @@ import numpy as np
 from harness import CameraPath, Material, Scene, SceneObject
 
 from . import textures
+from .assemble import suite_scene
 from .lighting import sky, sun
 from .primitives import box, cylinder, merge, rotate, to_polydata, translate
 
@@ -135,16 +136,12 @@ def build() -> Scene:
     eye = (1 - s) * np.array([-7.0, 1.7, 5.6]) + s * np.array([1.0, 1.75, 5.3])
     target = (1 - s) * np.array([4.0, 1.3, -3.0]) + s * np.array([9.0, 1.6, -4.0])
     camera = CameraPath(positions=eye, targets=target, fov=55.0, near=0.05, far=200.0)
-    return Scene(
-        name=SPEC["name"],
-        frame_count=SPEC["frames"],
-        resolution=SPEC["resolution"],
-        tags=SPEC["tags"],
+    return suite_scene(
+        SPEC,
         objects=objects,
         materials=_materials(),
         sun=sun((-0.6, 0.42, 0.55), irradiance=4.0, angular_radius=0.27),
         environment=sky(0.8),
         camera=camera,
         max_depth=5,
-        source="plugins.scenes.builtin",
     )
