@@ -3,7 +3,7 @@
 This module is the public API. Plugins import only names from here.
 """
 
-from harness.backends import available_backends, cuda_available, cuda_simulated
+from harness.backends import available_backends, cuda_available, cuda_simulated, load_backend
 from harness.buffers import (
     CHANNELS,
     ChannelError,
@@ -15,7 +15,16 @@ from harness.buffers import (
 from harness.hookspecs import hookimpl
 from harness.images import encode_srgb, write_png
 from harness.numba_cache import configure_numba_cache
+from harness.params import Param
 from harness.plugins import PluginConflictError, Registry, load_plugins
+from harness.protocols import (
+    AdaptiveRenderer,
+    ChunkedRenderer,
+    Filter,
+    Metric,
+    Renderer,
+    StageTimedFilter,
+)
 from harness.sampling import Sampler
 from harness.scene import (
     CameraPath,
@@ -28,7 +37,7 @@ from harness.scene import (
     read_texture,
     srgb_to_linear,
 )
-from harness.specs import FilterSpec, MetricSpec, RendererSpec, SceneSpec
+from harness.specs import TASKS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
 
 __version__ = "0.1.0"
 
@@ -36,24 +45,32 @@ __version__ = "0.1.0"
 configure_numba_cache()
 
 __all__ = [
+    "AdaptiveRenderer",
     "CHANNELS",
     "CameraPath",
     "ChannelError",
+    "ChunkedRenderer",
     "Environment",
+    "Filter",
     "FilterSpec",
     "Frame",
     "FrameMeta",
     "Material",
+    "Metric",
     "MetricSpec",
     "NonFiniteError",
+    "Param",
     "PluginConflictError",
     "Registry",
+    "Renderer",
     "RendererSpec",
     "Sampler",
     "Scene",
     "SceneObject",
     "SceneSpec",
+    "StageTimedFilter",
     "Sun",
+    "TASKS",
     "TriangleSoup",
     "__version__",
     "available_backends",
@@ -62,6 +79,7 @@ __all__ = [
     "encode_srgb",
     "expected_shape",
     "hookimpl",
+    "load_backend",
     "load_plugins",
     "read_texture",
     "srgb_to_linear",

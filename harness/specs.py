@@ -12,8 +12,20 @@ from types import MappingProxyType
 from typing import Any
 
 from harness.buffers import CHANNELS
+from harness.params import Param, param_table
 
 BACKENDS = ("cpu", "cuda")
+#: the benchmark tasks: ``denoise`` (1-spp path-traced input, converged path-traced reference) and
+#: ``antialias`` (one jittered shading sample per pixel, supersampled reference)
+TASKS = ("denoise", "antialias")
+
+
+def _check_tasks(owner: str, tasks) -> frozenset[str]:
+    tasks = frozenset([tasks] if isinstance(tasks, str) else tasks)
+    unknown = sorted(tasks - set(TASKS))
+    if unknown or not tasks:
+        raise ValueError(f"{owner}: tasks must be a non-empty subset of {TASKS}, got {sorted(tasks)}")
+    return tasks
 
 
 def _frozen_mapping(value: Mapping[str, Any] | None) -> Mapping[str, Any]:
@@ -52,7 +64,11 @@ class FilterSpec:
     backends : tuple of str
         Subset of ``("cpu", "cuda")``.
     params : mapping
-        Parameter names and their defaults.
+        Parameter names and their defaults, or :class:`harness.Param` declarations (default,
+        type, range, choices). A plain default declares its type (``int``, ``float``, ``bool``,
+        ``str``; ``None`` accepts anything). Every ``--param`` and preset is checked against
+        these before any work; ``spec.params`` always holds the plain defaults and
+        ``spec.param_specs`` the declarations.
     adaptive : bool
         True if the filter asks the renderer for more samples through a ``Sampler``.
     presets : mapping
@@ -65,11 +81,12 @@ class FilterSpec:
     trainer : callable, optional
         For learned filters: ``trainer(seed=0, output=None, quick=False) -> pathlib.Path``
         trains the model and writes its weights (``denoise-bench train NAME``).
-
-    Notes
-    -----
-    After each call a filter may set ``filter.stage_ms`` (dict of stage name to milliseconds of
-    the last call); ``denoise-bench bench`` prints it as a per-stage breakdown.
+    stage_timing : bool
+        True if the filter object sets ``stage_ms`` (dict of stage name to milliseconds of the
+        last call; see :class:`harness.protocols.StageTimedFilter`); the harness stores it with
+        each row and ``denoise-bench bench`` prints it as a per-stage breakdown.
+    tasks : iterable of str
+        Benchmark tasks the filter serves (:data:`TASKS`); ``("denoise",)`` by default.
     """
 
     name: str
@@ -85,9 +102,13 @@ class FilterSpec:
     description: str = ""
     xfail_checks: Mapping[str, str] = field(default_factory=dict)
     trainer: Callable[..., Any] | None = None
+    stage_timing: bool = False
+    tasks: frozenset = frozenset({"denoise"})
+    param_specs: Mapping[str, Param] = field(default_factory=dict, init=False, compare=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "requires", _check_channels(f"filter {self.name!r}", set(self.requires) | {"color"}))
+        owner = f"filter {self.name!r}"
+        object.__setattr__(self, "requires", _check_channels(owner, set(self.requires) | {"color"}))
         object.__setattr__(self, "optional", _check_channels(f"filter {self.name!r}", self.optional) - self.requires)
         bad = [b for b in self.backends if b not in BACKENDS]
         if bad or not self.backends:
@@ -95,9 +116,40 @@ class FilterSpec:
                 f"filter {self.name!r}: backends must be a non-empty subset of {BACKENDS}, got {self.backends}"
             )
         object.__setattr__(self, "backends", tuple(self.backends))
-        object.__setattr__(self, "params", _frozen_mapping(self.params))
+        specs = param_table(owner, self.params)
+        object.__setattr__(self, "param_specs", _frozen_mapping(specs))
+        object.__setattr__(self, "params", _frozen_mapping({k: p.default for k, p in specs.items()}))
         object.__setattr__(self, "xfail_checks", _frozen_mapping(self.xfail_checks))
         object.__setattr__(self, "presets", _frozen_mapping({k: _frozen_mapping(v) for k, v in self.presets.items()}))
+        object.__setattr__(self, "tasks", _check_tasks(owner, self.tasks))
+        for preset, values in self.presets.items():
+            self.check_params(values, context=f"preset {preset!r}")
+
+    def check_params(self, values: Mapping[str, Any], context: str = "") -> dict:
+        """Validate parameter values against :attr:`param_specs`.
+
+        Parameters
+        ----------
+        values : mapping
+            Parameter names and values (a subset of the declared parameters).
+        context : str
+            Named in the message (e.g. ``"preset 'fast'"``).
+
+        Returns
+        -------
+        dict
+            The values, with ints widened to float where the parameter is a float.
+
+        Raises
+        ------
+        ValueError
+            One line naming the filter, the parameter, what it accepts and what it got.
+        """
+        where = f"filter {self.name!r}" + (f" {context}" if context else "")
+        unknown = sorted(set(values) - set(self.param_specs))
+        if unknown:
+            raise ValueError(f"{where} has no parameter(s) {unknown}; parameters: {sorted(self.param_specs)}")
+        return {k: self.param_specs[k].check(v, owner=f"{where}: parameter {k!r}") for k, v in values.items()}
 
     def declarations(self) -> dict:
         """What the spec declares, as plain JSON-able data."""
@@ -110,6 +162,8 @@ class FilterSpec:
             "adaptive": self.adaptive,
             "presets": sorted(self.presets),
             "trainable": self.trainer is not None,
+            "stage_timing": self.stage_timing,
+            "tasks": sorted(self.tasks),
         }
 
 
@@ -123,8 +177,10 @@ class RendererSpec:
         As for :class:`FilterSpec`; ``factory(**settings)`` returns an object with
         ``render(scene, frame_index, *, spp, seed, channels, resolution) -> Frame``,
         ``reference(scene, frame_index, *, spp, seed, resolution) -> ndarray`` (when
-        ``references``) and ``sampler(scene, frame_index, *, spp, seed, channels, resolution)
-        -> Sampler`` (when ``adaptive``), and ``settings() -> dict`` (part of cache keys).
+        ``references``), ``accumulate(scene, frame_index, *, first_sample, count, seed,
+        resolution) -> ndarray`` (when ``chunked``) and ``sampler(scene, frame_index, *, spp,
+        seed, channels, resolution) -> Sampler`` (when ``adaptive``), and ``settings() -> dict``
+        (part of cache keys). See :mod:`harness.protocols`.
     provides : iterable of str
         Channels the renderer can produce.
     references : bool
@@ -135,6 +191,11 @@ class RendererSpec:
         Kinds of :class:`harness.Scene` it understands (``"procedural"``, ``"mesh"``).
     reference_spp : int
         Default samples per pixel of its references.
+    chunked : bool
+        True if the renderer has ``accumulate`` (the float64 sum of a range of samples):
+        references are then rendered in resumable, distributable chunks.
+    tasks : iterable of str
+        Benchmark tasks whose input and reference it makes (:data:`TASKS`).
     """
 
     name: str
@@ -146,10 +207,13 @@ class RendererSpec:
     scene_kinds: frozenset = frozenset({"mesh"})
     reference_spp: int = 4096
     description: str = ""
+    chunked: bool = False
+    tasks: frozenset = frozenset({"denoise"})
 
     def __post_init__(self):
         object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
         object.__setattr__(self, "scene_kinds", frozenset(self.scene_kinds))
+        object.__setattr__(self, "tasks", _check_tasks(f"renderer {self.name!r}", self.tasks))
 
     def declarations(self) -> dict:
         return {
@@ -158,6 +222,8 @@ class RendererSpec:
             "adaptive": self.adaptive,
             "scene_kinds": sorted(self.scene_kinds),
             "reference_spp": self.reference_spp,
+            "chunked": self.chunked,
+            "tasks": sorted(self.tasks),
         }
 
 
@@ -212,6 +278,8 @@ class SceneSpec:
         ``"procedural"`` (synthetic patterns) or ``"mesh"`` (geometry for raster/path tracing).
     suite : bool
         Whether the scene belongs to the built-in default suite of ``denoise-bench run``.
+    tasks : iterable of str
+        Benchmark tasks the scene is meant for (:data:`TASKS`).
     """
 
     name: str
@@ -223,9 +291,11 @@ class SceneSpec:
     kind: str = "mesh"
     suite: bool = True
     description: str = ""
+    tasks: frozenset = frozenset({"denoise"})
 
     def __post_init__(self):
         object.__setattr__(self, "tags", frozenset(self.tags))
+        object.__setattr__(self, "tasks", _check_tasks(f"scene {self.name!r}", self.tasks))
         object.__setattr__(self, "resolution", tuple(int(v) for v in self.resolution))
         if self.frames < 1:
             raise ValueError(f"scene {self.name!r}: frames must be >= 1, got {self.frames}")
@@ -237,4 +307,5 @@ class SceneSpec:
             "resolution": list(self.resolution),
             "kind": self.kind,
             "suite": self.suite,
+            "tasks": sorted(self.tasks),
         }

@@ -8,7 +8,7 @@ See ``README.md`` beside this file for the parameters and the choices made.
 from harness import FilterSpec, hookimpl
 
 from .filter import EAWFilter
-from .params import DEFAULTS, PRESETS
+from .params import DECLARED, PRESETS
 
 VERSION = "1.0"
 
@@ -28,7 +28,8 @@ def register_filters():
             requires={"color", "normal", "position"},
             temporal=False,
             backends=("cpu", "cuda"),
-            params=DEFAULTS,
+            params=DECLARED,
+            stage_timing=True,
             presets=PRESETS,
             description="edge-avoiding à-trous wavelets (Dammertz 2010): 5x5 B3 taps, colour/normal/position stops",
         )

@@ -7,7 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: parameter name -> default
+from harness import Param
+
+#: parameter name -> default (see :data:`DECLARED` for types and ranges)
 DEFAULTS = {
     "iterations": 5,
     "sigma_rt": 32.0,
@@ -18,6 +20,21 @@ DEFAULTS = {
     "position_units": "scene",
 }
 
+COLOR_SCALES = ("logmean", "none")
+POSITION_UNITS = ("scene", "world")
+
+#: the declarations in the FilterSpec: what ``--param`` accepts, checked before a run
+DECLARED = {
+    "iterations": Param(DEFAULTS["iterations"], min=1, max=10, doc="a-trous iterations (hole spacing 2**i)"),
+    "sigma_rt": Param(DEFAULTS["sigma_rt"], min=0, min_exclusive=True, doc="colour sigma of iteration 0; inf disables"),
+    "sigma_n": Param(DEFAULTS["sigma_n"], min=0, min_exclusive=True, doc="normal sigma; inf disables"),
+    "sigma_x": Param(DEFAULTS["sigma_x"], min=0, min_exclusive=True, doc="position sigma; inf disables"),
+    "sigma_rt_schedule": Param(DEFAULTS["sigma_rt_schedule"], type="any",
+                               doc="factor per iteration (float r: r**i) or a list of factors"),
+    "color_scale": Param(DEFAULTS["color_scale"], choices=COLOR_SCALES),
+    "position_units": Param(DEFAULTS["position_units"], choices=POSITION_UNITS),
+}
+
 #: named parameter sets
 PRESETS = {
     # as close to the paper's listing as the harness allows: raw colour, world-unit positions
@@ -26,8 +43,6 @@ PRESETS = {
     "fast": {"iterations": 3},
 }
 
-COLOR_SCALES = ("logmean", "none")
-POSITION_UNITS = ("scene", "world")
 #: the largest per-iteration coefficient 1/sigma^2 (keeps every product finite in float32)
 COEF_MAX = 1e12
 

@@ -1,10 +1,10 @@
 """The ``gaussian`` filter: a separable Gaussian blur that ignores edges (a lower baseline)."""
 
-from harness import FilterSpec, hookimpl
+from harness import FilterSpec, Param, hookimpl
 
 from .blur import GaussianBlur
 
-PARAMS = {"sigma": 1.5}
+PARAMS = {"sigma": Param(1.5, min=0, max=64, doc="standard deviation in pixels")}
 
 
 @hookimpl

@@ -1,11 +1,15 @@
 """The ``lbf`` filter plugin: a learned per-pixel cross-bilateral filter (Kalantari et al. 2015)."""
 
-from harness import FilterSpec, hookimpl
+from harness import FilterSpec, Param, hookimpl
 
 from .denoiser import LBFFilter
 
 VERSION = "1.0"
-PARAMS = {"radius": 5, "weights": None, "visibility": "auto"}
+PARAMS = {
+    "radius": Param(5, min=0, max=64, doc="filter window radius in pixels (weights trained with 5)"),
+    "weights": Param(None, type="str", doc="weights file; null for the shipped weights"),
+    "visibility": Param("auto", choices=("auto", "standin")),
+}
 
 
 def train_lbf(seed: int = 0, output=None, quick: bool = False):
@@ -30,6 +34,7 @@ def register_filters():
             temporal=False,
             backends=("cpu", "cuda"),
             params=PARAMS,
+            stage_timing=True,
             presets={"paper-window": {"radius": 27}, "small": {"radius": 3}},
             description="learned filter parameters: an MLP predicts per-pixel bilateral bandwidths",
             trainer=train_lbf,

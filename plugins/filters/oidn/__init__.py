@@ -8,15 +8,15 @@ import importlib.util
 
 import numpy as np
 
-from harness import FilterSpec, hookimpl
+from harness import FilterSpec, Param, hookimpl
 
 # pyoidn imports torch (seconds): look it up now, so a missing install marks this plugin broken,
 # and import it when a filter is built.
 if importlib.util.find_spec("pyoidn") is None:
     raise ImportError("the oidn filter needs pyoidn (pip install 'denoise-harness[peers]')")
 
-PARAMS = {"quality": "fast"}
 _QUALITY = ("fast", "balanced", "high")
+PARAMS = {"quality": Param("fast", choices=_QUALITY)}
 
 
 class OIDN:

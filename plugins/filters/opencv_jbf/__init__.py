@@ -8,9 +8,13 @@ extra); the plugin is listed as broken where it is not installed.
 import cv2  # noqa: E402  (import failure marks this plugin broken, as intended)
 import numpy as np
 
-from harness import FilterSpec, hookimpl
+from harness import FilterSpec, Param, hookimpl
 
-PARAMS = {"diameter": 9, "sigma_color": 0.2, "sigma_space": 3.0}
+PARAMS = {
+    "diameter": Param(9, min=1, max=63, doc="window diameter in pixels"),
+    "sigma_color": Param(0.2, min=0, min_exclusive=True, max=1e30, doc="range sigma on the guide"),
+    "sigma_space": Param(3.0, min=0, min_exclusive=True, max=1e30, doc="spatial sigma in pixels"),
+}
 
 
 class JointBilateral:

@@ -10,7 +10,7 @@ See README.md beside this file.
 from harness import FilterSpec, hookimpl
 
 from .filter import SBFFilter
-from .params import DEFAULTS, PAPER_SCALES
+from .params import DECLARED, PAPER_SCALES
 
 VERSION = "1.0"
 
@@ -34,7 +34,8 @@ def register_filters():
             optional={"spp"},
             temporal=False,
             backends=("cpu", "cuda"),
-            params=DEFAULTS,
+            params=DECLARED,
+            stage_timing=True,
             adaptive=True,
             presets=PRESETS,
             description="SURE-based per-pixel selection among 9 cross-bilateral filters, "

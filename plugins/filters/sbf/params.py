@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from harness import Param
+
 #: Candidate spatial scales (pixels) of Li, Wu & Chuang (2012); 0 is the identity filter.
 PAPER_SCALES = (0.0, 0.7071, 1.0, 1.4142, 2.0, 2.8284, 4.0, 5.6569, 8.0)
 
@@ -92,5 +94,24 @@ class SBFParams:
                 raise ValueError(f"sbf: {name} must be an integer >= {low}, got {value!r}")
 
 
-#: Parameter names and defaults, as declared in the FilterSpec.
+#: Parameter names and defaults.
 DEFAULTS = {f.name: f.default for f in fields(SBFParams)}
+
+_RANGES = {
+    "mode": {"choices": MODES},
+    "scales": {"min": 0, "max": 32},
+    "sigma_normal": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "sigma_albedo": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "sigma_depth": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "feature_var_floor": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "sure_scale": {"min": 0, "max": 32},
+    "extra_spp": {"min": 0, "max": 1e6},
+    "passes": {"min": 1, "max": 64},
+    "max_spp_per_pixel": {"min": 0},
+    "variance_source": {"choices": VARIANCE_SOURCES},
+    "variance_radius": {"min": 1, "max": 32},
+}
+
+#: The declarations in the FilterSpec (types and ranges, checked before a run; ``scales`` must
+#: also be strictly increasing, which the filter checks when it is built).
+DECLARED = {name: Param(value, **_RANGES.get(name, {})) for name, value in DEFAULTS.items()}

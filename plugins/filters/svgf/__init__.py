@@ -7,7 +7,7 @@ short-history spatial) luminance variance, and 5 variance-guided à-trous iterat
 
 from harness import FilterSpec, hookimpl
 
-from .params import PAPER, PRESETS
+from .params import DECLARED, PRESETS
 from .pipeline import SVGF
 
 VERSION = "1.0"
@@ -29,7 +29,8 @@ def register_filters():
             optional={"direct", "indirect", "emission"},
             temporal=True,
             backends=("cpu", "cuda"),
-            params=PAPER,
+            params=DECLARED,
+            stage_timing=True,
             presets=PRESETS,
             description="spatiotemporal variance-guided filtering (Schied et al. 2017)",
         )

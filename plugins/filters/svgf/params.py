@@ -9,6 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from harness import Param
+
 #: The paper's values. Reprojection tolerances and epsilons are not given in the paper; the
 #: values here are this implementation's choices (see README.md).
 PAPER = {
@@ -43,6 +45,27 @@ FALCOR = {
 }
 
 PRESETS = {"paper": dict(PAPER), "falcor": {**PAPER, **FALCOR}}
+
+_RANGES = {
+    "iterations": {"min": 0, "max": 10},
+    "feedback_iteration": {"min": -1, "max": 9},
+    "alpha_color": {"min": 0, "min_exclusive": True, "max": 1},
+    "alpha_moments": {"min": 0, "min_exclusive": True, "max": 1},
+    "max_history": {"min": 1, "max": 1e30},
+    "variance_frames": {"min": 0, "max": 1e30},
+    "sigma_z": {"min": 0, "max": 1e30},
+    "sigma_n": {"min": 0, "max": 1e30},
+    "sigma_l": {"min": 0, "max": 1e30},
+    "albedo_epsilon": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "depth_epsilon": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "luminance_epsilon": {"min": 0, "min_exclusive": True, "max": 1e30},
+    "depth_tolerance": {"min": 0, "max": 1e30},
+    "normal_tolerance": {"min": -1, "max": 1},
+}
+
+#: the declarations in the FilterSpec (types and ranges, checked before a run; the cross-parameter
+#: rule ``feedback_iteration < iterations`` is checked when the filter is built)
+DECLARED = {name: Param(value, **_RANGES.get(name, {})) for name, value in PAPER.items()}
 
 
 @dataclass(frozen=True)

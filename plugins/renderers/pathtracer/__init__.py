@@ -26,6 +26,8 @@ def register_renderers():
             adaptive=True,
             scene_kinds=frozenset({"mesh"}),
             reference_spp=REFERENCE_SPP,
+            chunked=True,
+            tasks={"denoise"},
             description="Numba CPU path tracer: SAH BVH, NEE + MIS, GGX materials, sun/sky/env lights",
         )
     ]

@@ -27,6 +27,7 @@ def register_renderers():
             adaptive=False,
             scene_kinds={"mesh"},
             reference_spp=16,
+            tasks={"antialias"},
             description="PyVista/VTK rasterized float G-buffer, local shading; SSAA references",
         )
     ]

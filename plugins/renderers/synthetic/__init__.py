@@ -19,6 +19,8 @@ def register_renderers():
             adaptive=True,
             scene_kinds=frozenset({"procedural"}),
             reference_spp=0,
+            chunked=True,
+            tasks={"denoise"},
             description="analytic G-buffer + exponential per-sample noise of known variance; exact references",
         )
     ]
