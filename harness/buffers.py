@@ -17,6 +17,7 @@ The converged reference is never part of a frame.
 from __future__ import annotations
 
 import dataclasses
+import json
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -39,6 +40,9 @@ CHANNELS: Mapping[str, tuple[int, type, str]] = {
     "spp": (1, np.int32, "samples taken per pixel"),
     "visibility": (1, np.float32, "fraction of first-hit shadow rays that reached a light"),
 }
+
+#: the key of a frame's metadata in :meth:`Frame.to_arrays`
+META_KEY = "__meta__"
 
 # channels that may legitimately hold inf (background depth)
 _INF_ALLOWED = frozenset({"depth"})
@@ -103,6 +107,39 @@ class FrameMeta:
     jitter: tuple = (0.0, 0.0)
     camera_cut: bool = False
     extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """The metadata as JSON-able data (matrices as nested lists); see :meth:`from_dict`."""
+        def matrix(value):
+            return None if value is None else np.asarray(value, np.float64).tolist()
+
+        return {
+            "index": int(self.index),
+            "scene": self.scene,
+            "seed": int(self.seed),
+            "view_proj": matrix(self.view_proj),
+            "prev_view_proj": matrix(self.prev_view_proj),
+            "jitter": [float(v) for v in self.jitter],
+            "camera_cut": bool(self.camera_cut),
+            "extra": dict(self.extra),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> FrameMeta:
+        """Metadata from :meth:`to_dict`'s output (missing fields take their defaults)."""
+        def matrix(value):
+            return None if value is None else np.asarray(value, np.float64)
+
+        return cls(
+            index=int(data.get("index", 0)),
+            scene=str(data.get("scene", "")),
+            seed=int(data.get("seed", 0)),
+            view_proj=matrix(data.get("view_proj")),
+            prev_view_proj=matrix(data.get("prev_view_proj")),
+            jitter=tuple(float(v) for v in data.get("jitter", (0.0, 0.0))),
+            camera_cut=bool(data.get("camera_cut", False)),
+            extra=dict(data.get("extra", {})),
+        )
 
 
 class Frame:
@@ -188,6 +225,23 @@ class Frame:
     def with_meta(self, **changes) -> Frame:
         """A frame with some metadata fields changed."""
         return Frame(self._channels, dataclasses.replace(self.meta, **changes))
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """The channels plus the metadata (JSON bytes under ``__meta__``), for ``np.savez``.
+
+        :meth:`from_arrays` restores the frame bit for bit.
+        """
+        arrays = dict(self._channels)
+        arrays[META_KEY] = np.frombuffer(json.dumps(self.meta.to_dict()).encode(), np.uint8)
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray], *, owner: str = "frame") -> Frame:
+        """The frame stored by :meth:`to_arrays` (validated like any frame)."""
+        arrays = dict(arrays)
+        raw = arrays.pop(META_KEY, None)
+        meta = FrameMeta.from_dict(json.loads(bytes(np.asarray(raw, np.uint8)).decode())) if raw is not None else None
+        return cls(arrays, meta, owner=owner)
 
     def __repr__(self) -> str:
         return f"Frame({self.height}x{self.width}, channels={sorted(self._channels)}, index={self.meta.index})"

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from harness.buffers import ChannelError, Frame, FrameMeta, apply_nonfinite_policy, check_filter_output
+from harness.buffers import ChannelError, Frame, apply_nonfinite_policy, check_filter_output
 from harness.cache import Cache, array_hash, make_key
 from harness.errors import short_error
 from harness.results import combine, make_table, write_table
@@ -134,8 +134,7 @@ class Runner:
         )
         stored = self.cache.load("frames", key)
         if stored is not None:
-            meta = json.loads(bytes(stored.pop("__meta__")).decode())
-            return Frame(stored, _meta_from_json(meta))
+            return Frame.from_arrays(stored)
         renderer = self.renderer(group.renderer)
         frame = renderer.render(
             scene,
@@ -150,9 +149,7 @@ class Runner:
                 f"renderer {group.renderer!r}: render() returned {type(frame).__name__}, expected harness.Frame"
             )
         frame = Frame(frame.arrays(), frame.meta, owner=f"renderer {group.renderer!r}")
-        arrays = dict(frame.arrays())
-        arrays["__meta__"] = np.frombuffer(json.dumps(_meta_to_json(frame.meta)).encode(), np.uint8)
-        self.cache.store("frames", key, arrays)
+        self.cache.store("frames", key, frame.to_arrays())
         return frame
 
     def get_reference(self, group, scene, frame_index) -> np.ndarray:
@@ -434,32 +431,6 @@ class Runner:
         row["repeats"] = (timing or {}).get("repeats", 0)
         row["stage_ms"] = (timing or {}).get("stage_ms", "")
         return row
-
-
-def _meta_to_json(meta: FrameMeta) -> dict:
-    return {
-        "index": meta.index,
-        "scene": meta.scene,
-        "seed": meta.seed,
-        "view_proj": None if meta.view_proj is None else np.asarray(meta.view_proj).tolist(),
-        "prev_view_proj": None if meta.prev_view_proj is None else np.asarray(meta.prev_view_proj).tolist(),
-        "jitter": list(meta.jitter),
-        "camera_cut": bool(meta.camera_cut),
-        "extra": dict(meta.extra),
-    }
-
-
-def _meta_from_json(d: dict) -> FrameMeta:
-    return FrameMeta(
-        index=d["index"],
-        scene=d["scene"],
-        seed=d["seed"],
-        view_proj=None if d["view_proj"] is None else np.asarray(d["view_proj"]),
-        prev_view_proj=None if d["prev_view_proj"] is None else np.asarray(d["prev_view_proj"]),
-        jitter=tuple(d["jitter"]),
-        camera_cut=d["camera_cut"],
-        extra=d["extra"],
-    )
 
 
 def _progress(total: int, enabled: bool):
