@@ -13,7 +13,7 @@ from harness.buffers import (
     expected_shape,
 )
 from harness.hookspecs import hookimpl
-from harness.images import encode_srgb, write_png
+from harness.images import display_variance, encode_srgb, write_png
 from harness.numba_cache import configure_numba_cache
 from harness.params import Param
 from harness.plugins import PluginConflictError, Registry, load_plugins
@@ -76,6 +76,7 @@ __all__ = [
     "available_backends",
     "cuda_available",
     "cuda_simulated",
+    "display_variance",
     "encode_srgb",
     "expected_shape",
     "hookimpl",

@@ -29,10 +29,12 @@ from harness.lock import FolderLock, check_out_dir
 from harness.manifest import make_manifest, write_manifest
 from harness.nonfinite import apply_nonfinite_policy
 from harness.plan import Group, Plan
+from harness.references import reference_record
 from harness.renders import RenderStore
 from harness.results import write_table
 from harness.rows import combine, make_table
 from harness.tasks import JobTask
+from harness.timing import timing_frames
 
 
 @dataclass
@@ -201,11 +203,16 @@ class _Run:
         for t in range(group.frames):
             frame = store.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed, channels=group.channels)
             frame, count = apply_nonfinite_policy(frame, nonfinite, owner=f"renderer {group.renderer!r}")
-            ref = store.reference(scene, group.renderer, t, spp=group.reference_spp) if rspec.references else None
+            record = (reference_record(store, scene, group.renderer, t, spp=group.reference_spp,
+                                       target=group.reference_target) if rspec.references else None)
+            ref = record.image if record is not None else None
             inputs.frames.append(frame)
             inputs.repaired.append(count)
             inputs.references.append(ref)
             inputs.reference_hashes.append(array_hash(ref) if ref is not None else "")
+            inputs.reference_variances.append(record.variance if record is not None else None)
+            inputs.reference_quality.append((record.spp, record.error) if record is not None else None)
+        inputs.timing_frames = timing_frames(store, group, nonfinite)
         return inputs
 
 

@@ -86,7 +86,8 @@ def test_render_command_fills_the_cache_that_run_uses(tmp_path):
                  "--cache-dir", tmp_path / "c"])
     assert "synthetic-static: 2 reference frame(s) at 8 spp, 128x96, in the cache" in out.stdout
     run = bench(["run", "--scenes", "synthetic-static", "--frames", "2", "--filters", "passthrough",
-                 "--reference-spp", "8", "--quiet", "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
+                 "--reference-spp", "8", "--quiet", "--seeds", "0", "--timing-at", "none", "--out", tmp_path / "o",
+                 "--cache-dir", tmp_path / "c"])
     assert "2 reused from the cache, 2 rendered" in run.stdout  # references reused, noisy frames rendered
 
 

@@ -15,8 +15,10 @@ from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
 from harness.manifest import read_manifest
 from harness.plan import choose_renderer, make_plan
+from harness.profiles import PROFILES, get_profile
+from harness.references import reference_record
 from harness.renders import RenderStore, scene_selection
-from harness.results import format_table, leaderboard, read_results, summary, to_markdown
+from harness.results import board_table, format_table, leaderboard, read_results, summary, to_markdown
 from harness.run import run_plan
 from harness.specs import TASKS
 
@@ -48,18 +50,33 @@ def cmd_run(registry, args) -> int:
         return _run(registry, args, tasks)
 
 
+def _profile(args):
+    """The run's profile with the options given on the command line in place of its values."""
+    return get_profile(args.profile).with_overrides(
+        resolution=args.resolution, frames=args.frames, seeds=tuple(args.seeds) if args.seeds else None,
+        reference_spp=args.reference_spp, reference_target=args.reference_target,
+        repeats=getattr(args, "repeats", None), timing=getattr(args, "timing_at", None),
+        timing_scene=getattr(args, "timing_scene", None),
+    )
+
+
 def _run(registry, args, tasks) -> int:
-    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    profile = _profile(args)
+    store = RenderStore(registry, _cache(args), resolution=profile.resolution)
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, tasks)
     filters = args.filters or sorted(n for n, s in registry.filters.items() if s.tasks & set(tasks))
     metrics = args.metrics or sorted(registry.metrics)
     plan = make_plan(
         registry, store, specs, filters, metrics, tasks=tasks, renderer=args.renderer, backends=args.backend,
-        spp=args.spp, seeds=args.seeds, frames=args.frames, params=_grouped(args.param), presets=dict(args.preset),
-        repeats=args.repeats, reference_spp=args.reference_spp, nonfinite=args.nonfinite,
+        spp=args.spp, seeds=list(profile.seeds), frames=profile.frames, params=_grouped(args.param),
+        presets=dict(args.preset), repeats=profile.repeats, reference_spp=args.reference_spp,
+        nonfinite=args.nonfinite, sampled_reference_spp=profile.reference_spp,
+        reference_target=profile.reference_target, emitters=args.emitters,
+        timing_resolutions=profile.timing, timing_scene=profile.timing_scene,
     )
-    print(f"denoise-bench run: {len(plan.jobs)} jobs on {len(specs)} scene(s), {len(plan.skipped)} skipped; "
-          f"results in {args.out}", file=sys.stderr)
+    plan.settings["profile"] = {**profile.as_dict(), "name": args.profile}
+    print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
+          f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
                            progress=_progress(args))
@@ -73,22 +90,23 @@ def _run(registry, args, tasks) -> int:
         if outcome.removed:
             line += f", {outcome.removed} stored jobs of other settings removed"
     print(line)
-    _print_summary(df, registry)
+    _print_summary(df, registry, args.rank_by)
     errors = int(df[df.status == "error"].job_id.nunique())
     if errors:
         print(f"\n{errors} job(s) with errors; see 'message' in {args.out / 'results.parquet'}")
     return 1 if (args.strict and errors) else 0
 
 
-def _print_summary(df: pd.DataFrame, registry) -> None:
+def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> None:
     ok = df[df.status == "ok"]
     if not ok.empty:
-        print("\nSummary (mean over frames; ms = median per-frame filter time):")
+        print("\nSummary (mean over frames and seeds; ms_median = median per-frame filter time at the scene's "
+              "resolution):")
         print(format_table(summary(ok)))
-        board = leaderboard(df, registry.metrics)
-        for task, part in board.groupby("task", sort=True):
-            print(f"\nLeaderboard, task {task} (mean rank over scenes and metrics, best first):")
-            print(format_table(part.drop(columns="task")))
+        board = leaderboard(df, registry.metrics, rank_by)
+        for task, part in _boards(board):
+            print(f"\n{_board_title(task, part)}:")
+            print(format_table(board_table(part, intervals="rank")))
     skipped = df[df.status == "skipped"]
     if not skipped.empty:
         print("\nSkipped:")
@@ -103,13 +121,29 @@ def _print_summary(df: pd.DataFrame, registry) -> None:
             print(f"  {r.filter}/{r.backend} on {r.scene} frame {r.frame}: {r.message}")
 
 
+def _boards(board: pd.DataFrame):
+    """(task, that task's rows) of a leaderboard, keeping its attributes."""
+    for task, part in board.groupby("task", sort=True) if not board.empty else ():
+        part = part.drop(columns="task").reset_index(drop=True)
+        part.attrs.update(board.attrs)
+        yield task, part
+
+
+def _board_title(task: str, part: pd.DataFrame) -> str:
+    rank_by = part.attrs.get("rank_by")
+    direction = "higher" if part.attrs.get("higher_is_better") else "lower"
+    return (f"Leaderboard, task {task}: ranked by {rank_by} ({direction} is better; mean over scenes of the "
+            f"per-scene means, 95% bootstrap interval over seeds and frames; 'vs next' is a paired test against "
+            f"the next entry; ms at 1280x720 and 1920x1080 on the timing scene)")
+
+
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
     df = read_results(args.dir)
     if args.all:
         print(format_table(df))
     else:
-        _print_summary(df, registry)
+        _print_summary(df, registry, args.rank_by)
     m = read_manifest(args.dir)
     provenance = ""
     if m:
@@ -120,10 +154,12 @@ def cmd_show(registry, args) -> int:
                       f"({m['machine'].get('numba_threads')} threads); created {m.get('created')}")
         print(f"\n{provenance}")
     if args.markdown is not None:
-        board = leaderboard(df, registry.metrics)
+        board = leaderboard(df, registry.metrics, args.rank_by)
         text = ["# Leaderboard", ""]
-        for task, part in board.groupby("task", sort=True):
-            text += [f"## Task {task}", "", to_markdown(part.drop(columns="task"))]
+        if m and m.get("settings", {}).get("profile"):
+            text += [f"Profile: `{json.dumps(m['settings']['profile'], sort_keys=True)}`", ""]
+        for task, part in _boards(board):
+            text += [f"## Task {task}", "", _board_title(task, part) + ".", "", to_markdown(board_table(part))]
         text += ["## Per scene", "", to_markdown(summary(df[df.status == "ok"])), provenance, ""]
         args.markdown.write_text("\n".join(text))
         print(f"markdown written to {args.markdown}")
@@ -158,7 +194,9 @@ def cmd_render(registry, args) -> int:
     """Render references of every selected scene frame into the cache, in resumable chunks."""
     from tqdm.auto import tqdm
 
-    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    profile = get_profile(args.profile).with_overrides(resolution=args.resolution, frames=args.frames,
+                                                       reference_spp=args.spp, reference_target=args.reference_target)
+    store = RenderStore(registry, _cache(args), resolution=profile.resolution)
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
     for spec in specs:
         rname = args.renderer or choose_renderer(registry, spec, args.task)
@@ -167,14 +205,43 @@ def cmd_render(registry, args) -> int:
         rspec = registry.get("renderer", rname)
         if not rspec.references:
             raise ValueError(f"renderer {rname!r} makes no references")
-        spp = args.spp if args.spp is not None else rspec.reference_spp
-        frames = spec.frames if args.frames is None else min(spec.frames, args.frames)
+        spp = rspec.reference_spp  # analytic references stay analytic unless --spp says otherwise
+        if args.spp is not None or (rspec.reference_spp and profile.reference_spp is not None):
+            spp = profile.reference_spp
+        frames = spec.frames if profile.frames is None else min(spec.frames, profile.frames)
         width, height = store.resolution_of(spec)
-        with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {spp} spp)", unit="spp",
+        target = profile.reference_target
+        what = f"{spp} spp" if not target else f"{target:g} median relative error, at most {spp} spp"
+        records = []
+        with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {what})", unit="spp",
                   disable=not sys.stderr.isatty()) as bar:
             for t in range(frames):
-                store.reference(spec.name, rname, t, spp=spp, chunk=args.chunk, progress=bar.update)
-        print(f"{spec.name}: {frames} reference frame(s) at {spp} spp, {width}x{height}, in the cache")
+                records.append(reference_record(store, spec.name, rname, t, spp=spp, target=target, chunk=args.chunk,
+                                                progress=bar.update))
+        done = ", ".join(f"{r.spp}/{r.error:.3g}" for r in records)
+        print(f"{spec.name}: {frames} reference frame(s) at {what}, {width}x{height}, in the cache (samples per "
+              f"pixel / median relative standard error of each: {done})")
+    return 0
+
+
+def cmd_profiles(registry, args) -> int:
+    """List the run profiles: each one's settings (options of ``run`` override them)."""
+    table = [p.as_dict() for p in PROFILES.values()]
+    if args.format == "json":
+        print(json.dumps(table, indent=2))
+        return 0
+    def cell(value) -> str:
+        if value is None:
+            return "-"
+        if isinstance(value, list):
+            return ",".join(map(str, value)) if value else "none"
+        return str(value)
+
+    rows = pd.DataFrame([{k: cell(v) for k, v in p.items() if k != "description"} for p in table])
+    print(rows.to_string(index=False))
+    print()
+    for p in table:
+        print(f"{p['name']}: {p['description']}")
     return 0
 
 
