@@ -18,7 +18,7 @@ from harness.plan import choose_renderer, make_plan
 from harness.profiles import PROFILES, get_profile
 from harness.references import reference_record
 from harness.renders import RenderStore, scene_selection
-from harness.results import board_table, format_table, leaderboard, read_results, summary, to_markdown
+from harness.results import TIME_COLUMNS, board_table, format_table, leaderboard, read_results, summary, to_markdown
 from harness.run import run_plan
 from harness.specs import TASKS
 
@@ -105,7 +105,7 @@ def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> No
         print(format_table(summary(ok)))
         board = leaderboard(df, registry.metrics, rank_by)
         for task, part in _boards(board):
-            print(f"\n{_board_title(task, part)}:")
+            print(f"\n{_board_title(task, part, df)}:")
             print(format_table(board_table(part, intervals="rank")))
     skipped = df[df.status == "skipped"]
     if not skipped.empty:
@@ -129,12 +129,14 @@ def _boards(board: pd.DataFrame):
         yield task, part
 
 
-def _board_title(task: str, part: pd.DataFrame) -> str:
+def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
     rank_by = part.attrs.get("rank_by")
     direction = "higher" if part.attrs.get("higher_is_better") else "lower"
+    timed = df[(df.task == task) & df[TIME_COLUMNS].notna().any(axis=1)]
+    where = f"on {', '.join(sorted(set(timed.scene)))}" if len(timed) else "not measured in this run"
     return (f"Leaderboard, task {task}: ranked by {rank_by} ({direction} is better; mean over scenes of the "
             f"per-scene means, 95% bootstrap interval over seeds and frames; 'vs next' is a paired test against "
-            f"the next entry; ms at 1280x720 and 1920x1080 on the timing scene)")
+            f"the next entry; ms per frame at 1280x720 and 1920x1080 {where})")
 
 
 def cmd_show(registry, args) -> int:
@@ -157,13 +159,28 @@ def cmd_show(registry, args) -> int:
         board = leaderboard(df, registry.metrics, args.rank_by)
         text = ["# Leaderboard", ""]
         if m and m.get("settings", {}).get("profile"):
-            text += [f"Profile: `{json.dumps(m['settings']['profile'], sort_keys=True)}`", ""]
+            text += [_profile_line(m["settings"]["profile"]), ""]
+        if m and m.get("command"):
+            text += [f"Command: `{m['command']}`", ""]
         for task, part in _boards(board):
-            text += [f"## Task {task}", "", _board_title(task, part) + ".", "", to_markdown(board_table(part))]
+            text += [f"## Task {task}", "", _board_title(task, part, df) + ".", "", to_markdown(board_table(part))]
         text += ["## Per scene", "", to_markdown(summary(df[df.status == "ok"])), provenance, ""]
         args.markdown.write_text("\n".join(text))
         print(f"markdown written to {args.markdown}")
     return 0
+
+
+def _profile_line(profile: dict) -> str:
+    """One sentence with a run's profile and the values it used."""
+    res = profile.get("resolution") or "each scene's own"
+    frames = profile.get("frames") or "all"
+    target = profile.get("reference_target") or 0
+    refs = (f"to a median relative standard error of {target:g}, at most {profile.get('reference_spp')} spp"
+            if target else f"{profile.get('reference_spp') or 'the renderer default'} spp")
+    timing = ", ".join(profile.get("timing") or []) or "none"
+    return (f"Profile `{profile.get('name')}` with the values used: resolution {res}, frames per scene {frames}, "
+            f"seeds {', '.join(map(str, profile.get('seeds', [])))}, references {refs}, "
+            f"{profile.get('repeats')} timed calls per frame, timings at {timing} on `{profile.get('timing_scene')}`.")
 
 
 def cmd_plugins(registry, args) -> int:
