@@ -61,9 +61,10 @@ class FrameReader:
             path = self.capture.path(source, t)
             if not source.required and not path.is_file():
                 continue
-            names, _ = self._file(files, path)
-            if not source.required and not components_of(names, source.layer):
+            planes, _ = self._file(files, path)
+            if not source.required and not components_of(planes, source.layer):
                 continue
+            self._take(files, source, t)  # the layer and its components must be there
             present[channel] = source
         return present
 

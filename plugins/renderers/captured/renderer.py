@@ -37,10 +37,13 @@ def open_capture(path) -> Scene | None:
     capture = load_sidecar(sidecar)
     reader = FrameReader(capture)
     sources = reader.available(0)
+    reference = capture.reference
+    if reference is not None and not reference.required and not capture.path(reference, 0).is_file():
+        reference = None
     width, height = read_size(capture.path(capture.sources["color"], 0))
     files = []
     for t in range(capture.frames):
-        for source in [*sources.values(), *([capture.reference] if capture.reference else [])]:
+        for source in [*sources.values(), *([reference] if reference else [])]:
             file = capture.path(source, t)
             if file in files:
                 continue
@@ -60,7 +63,7 @@ def open_capture(path) -> Scene | None:
         "format": "captured",
         "capture": capture.describe(),
         "channels": sorted(sources),
-        "references": capture.reference is not None,
+        "references": reference is not None,
         "tasks": list(capture.tasks),
         "files_sha256": digest.hexdigest(),
     }
@@ -145,7 +148,7 @@ class CapturedRenderer:
         capture = self._capture(scene)
         self._check_resolution(scene, resolution)
         self._index(capture, frame_index)
-        if capture.reference is None:
+        if not scene.params["references"]:
             raise ValueError(f"captured scene {scene.name!r} has no references (no 'reference' in its sidecar)")
         ref = FrameReader(capture).reference(frame_index)
         want = (scene.resolution[1], scene.resolution[0], 3)

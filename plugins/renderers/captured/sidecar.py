@@ -64,7 +64,8 @@ class Source:
     components : tuple of str or None
         Component names to take, in order; None picks them by the channel's size.
     required : bool
-        False for a channel that only a preset names: absent from the capture, it is not provided.
+        False for a channel (or reference) that only a preset names: absent from the capture, it
+        is not provided.
     """
 
     channel: str
@@ -177,13 +178,14 @@ def load_sidecar(sidecar: Path) -> Capture:
     first_frame = _integer(where, "first_frame", data.get("first_frame", preset.get("first_frame", 0)))
     default_file = data.get("file", preset.get("file"))
     sources = _sources(where, data.get("channels", {}), preset["channels"], default_file)
-    if "color" not in sources:
-        raise CaptureError(f"{where}: no source for the 'color' channel (a capture needs the noisy colour)")
-    reference, reference_spp = _reference(where, data.get("reference", preset.get("reference")), default_file)
+    declared = "reference" in data
+    reference, reference_spp = _reference(where, data.get("reference", preset.get("reference")), default_file, declared)
     conventions = _conventions(where, {**preset["conventions"], **_table(where, "conventions", data, {})})
     camera = _camera(where, _table(where, "camera", data, {}))
     frame_meta = _frame_meta(where, data.get("frame", []), frames)
     _check_camera_needs(where, conventions, camera, frame_meta)
+    if "color" not in sources:
+        raise CaptureError(f"{where}: no source for the 'color' channel (a capture needs the noisy colour)")
     tasks = tuple(sorted(_strings(where, "tasks", data.get("tasks", ["denoise"]))))
     if not tasks or set(tasks) - set(TASKS):
         raise CaptureError(f"{where}: 'tasks' must be a non-empty subset of {list(TASKS)}, got {list(tasks)}")
@@ -306,7 +308,7 @@ def _sources(where: str, declared, preset: dict, default_file: str | None) -> di
     return sources
 
 
-def _reference(where: str, entry, default_file: str | None) -> tuple[Source | None, int | None]:
+def _reference(where: str, entry, default_file: str | None, required: bool) -> tuple[Source | None, int | None]:
     if entry is None or entry is False:
         return None, None
     if isinstance(entry, str):
@@ -314,8 +316,8 @@ def _reference(where: str, entry, default_file: str | None) -> tuple[Source | No
     if not isinstance(entry, dict):
         raise CaptureError(f"{where}: 'reference' must be a layer name or a table, got {entry!r}")
     spp = entry.get("spp")
-    return _source(where, "reference", entry, default_file, True), None if spp is None else _positive(
-        where, "reference spp", spp)
+    source = _source(where, "reference", entry, default_file, required)
+    return source, None if spp is None else _positive(where, "reference spp", spp)
 
 
 def _conventions(where: str, given: dict) -> dict:
