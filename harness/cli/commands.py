@@ -62,7 +62,7 @@ def _run(registry, args, tasks) -> int:
           f"results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
-                           progress=_progress(args))
+                           save_outputs=args.save_outputs, progress=_progress(args))
     df = outcome.table
     if args.csv:
         df.to_csv(args.out / "results.csv", index=False)
@@ -175,6 +175,20 @@ def cmd_render(registry, args) -> int:
             for t in range(frames):
                 store.reference(spec.name, rname, t, spp=spp, chunk=args.chunk, progress=bar.update)
         print(f"{spec.name}: {frames} reference frame(s) at {spp} spp, {width}x{height}, in the cache")
+    return 0
+
+
+def cmd_export(registry, args) -> int:
+    """Write every selected scene as a capture folder (multi-layer EXR frames, references, sidecar)."""
+    from harness.export import export_scene
+
+    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
+    for spec in specs:
+        sidecar = export_scene(registry, store, spec, args.out / spec.name, task=args.task, renderer=args.renderer,
+                               frames=args.frames, spp=args.spp, seed=args.seed, reference_spp=args.reference_spp,
+                               half=args.half)
+        print(f"{spec.name}: written to {sidecar.parent} (open it with --scene-dir {sidecar.parent})")
     return 0
 
 

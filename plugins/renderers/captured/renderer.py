@@ -78,22 +78,17 @@ def _size(file) -> tuple[int, int]:
 
 
 def _scene(capture: Capture, params: dict, resolution: tuple) -> Scene:
-    """A Scene of kind "captured".
-
-    ``harness.Scene`` accepts only the kinds "mesh" and "procedural" at construction; the kind
-    is set afterwards until the harness lists "captured" among its scene kinds.
-    """
-    scene = Scene(
+    """A Scene of kind "captured" that gives only the channels the capture holds."""
+    return Scene(
         name=capture.name,
-        kind="procedural",
+        kind=KIND,
         frame_count=capture.frames,
         resolution=resolution,
         tags=frozenset(capture.tags) | {"captured"},
         params=params,
         source=str(capture.folder),
+        channels=frozenset(params["channels"]),
     )
-    scene.kind = KIND
-    return scene
 
 
 class CapturedRenderer:
@@ -102,7 +97,7 @@ class CapturedRenderer:
     The noisy frames carry the samples they were captured with: ``spp`` must match the
     sidecar's ``spp`` where it states one; ``seed`` is ignored (a capture holds one
     realisation of the noise). ``render`` returns the asked channels that the capture has
-    (the planner skips filters needing the others, from ``scene.params["channels"]``).
+    (the planner skips filters needing the others, from ``scene.channels``).
     """
 
     def settings(self) -> dict:
