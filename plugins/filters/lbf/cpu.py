@@ -36,9 +36,11 @@ from .fastexp import exp_neg
 from .features import FEATURE_VAR_FLOOR, Inputs, position_stats
 
 BLOCK = 256
-#: colour magnitudes above this (or variances above its square) are scaled down by a power of
-#: two for the float32 filter (the colour term is scale-invariant)
-COLOUR_LIMIT = 2.0**60
+#: colours above this magnitude are scaled down by a power of two where the float32 filter sums
+#: them (the distances use the unscaled colour)
+COLOUR_LIMIT = 2.0**100
+#: the filter's variance planes are clamped here, so ``var_i + var_j + 1e-10`` is finite and > 0
+VAR_PLANE_MAX = 1e38
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 _signals_px = njit(cache=True)(K.signals_px)
@@ -76,7 +78,6 @@ def _signals(color, variance, position, normal, albedo, vis, has_vis, spp, has_s
     for s in prange(slots):
         for i in range(s, h, slots):
             cmax = 0.0
-            vmax = 0.0
             for j in range(w):
                 _signals_px(i, j, color, variance, position, normal, albedo, vis, has_vis, spp,
                             has_spp, mu0, mu1, mu2, inv_scale, sig, aux)
@@ -84,12 +85,10 @@ def _signals(color, variance, position, normal, albedo, vis, has_vis, spp, has_s
                     c = np.float64(color[i, j, ch])
                     c = min(max(c, -_FLOAT32_MAX), _FLOAT32_MAX) if c == c else 0.0
                     cplane[ch, i, pad + j] = c
-                    v = _clean_variance(np.float64(variance[i, j, ch]))
+                    v = min(_clean_variance(np.float64(variance[i, j, ch])), VAR_PLANE_MAX)
                     vplane[ch, i, pad + j] = v
                     cmax = max(cmax, abs(c))
-                    vmax = max(vmax, v)
-            peaks[i, 0] = cmax
-            peaks[i, 1] = vmax
+            peaks[i] = cmax
 
 
 @njit(parallel=True, cache=True)
@@ -155,9 +154,15 @@ def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_
 
 
 @njit(cache=True, fastmath=True)
-def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, i, j0, n, cen, part,
+def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0, n, cen, part,
                  acc, out):
-    """Filter the pixels ``(i, j0 .. j0 + n)`` (see :func:`.kernels.filter_px` for D)."""
+    """Filter the pixels ``(i, j0 .. j0 + n)`` (see :func:`.kernels.filter_px` for D).
+
+    Every term of D is finite or +Inf, never NaN (bounded features, variance planes <= 1e38,
+    colour bandwidth >= 1e-30), and a tap with ``D > 40`` (Inf included) has weight 0. The
+    weighted colours are summed as ``colour * scale`` (a power of two, 1 unless the colour
+    exceeds 2^100) so that float32 sums cannot overflow.
+    """
     h = sp.shape[1]
     a = pad + j0
     f32 = np.float32
@@ -194,7 +199,7 @@ def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, i, j0, n
     u2 = vp[2, i, a:a + n]
     acc[:, :n] = 0.0
     cut = f32(K.D_CUT)
-    tiny = f32(1e-37)
+    eps = f32(1e-10)
     for dy in range(-radius, radius + 1):
         ii = i + dy
         if ii < 0 or ii >= h:
@@ -242,14 +247,15 @@ def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, i, j0, n
                 e0 = c0[j] - q0[j]
                 e1 = c1[j] - q1[j]
                 e2 = c2[j] - q2[j]
-                d += p_c[j] * (e0 * e0 / max(u0[j] + w0[j] + eps, tiny)
-                               + e1 * e1 / max(u1[j] + w1[j] + eps, tiny)
-                               + e2 * e2 / max(u2[j] + w2[j] + eps, tiny))
+                d += p_c[j] * (e0 * e0 / (u0[j] + w0[j] + eps)
+                               + e1 * e1 / (u1[j] + w1[j] + eps)
+                               + e2 * e2 / (u2[j] + w2[j] + eps))
                 wt[j] = exp_neg(d) * m[j] if d <= cut else f32(0.0)
             for j in range(n):
-                s0[j] += wt[j] * q0[j]
-                s1[j] += wt[j] * q1[j]
-                s2[j] += wt[j] * q2[j]
+                e = wt[j] * scale
+                s0[j] += e * q0[j]
+                s1[j] += e * q1[j]
+                s2[j] += e * q2[j]
                 s3[j] += wt[j]
         for ch in range(4):
             t = acc[ch, :n]
@@ -258,9 +264,9 @@ def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, i, j0, n
                 t[j] += src[j]
     for j in range(n):
         if u0[j] + u1[j] + u2[j] == 0:  # noise-free pixel: copied
-            out[i, j0 + j, 0] = c0[j]
-            out[i, j0 + j, 1] = c1[j]
-            out[i, j0 + j, 2] = c2[j]
+            out[i, j0 + j, 0] = c0[j] * scale
+            out[i, j0 + j, 1] = c1[j] * scale
+            out[i, j0 + j, 2] = c2[j] * scale
         else:  # acc[3] >= 1: the centre tap
             out[i, j0 + j, 0] = acc[0, j] / acc[3, j]
             out[i, j0 + j, 1] = acc[1, j] / acc[3, j]
@@ -268,7 +274,7 @@ def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, i, j0, n
 
 
 @njit(parallel=True, cache=True)
-def _filter(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, out, slots):
+def _filter(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, out, slots):
     h = out.shape[0]
     w = out.shape[1]
     n_blocks = (w + BLOCK - 1) // BLOCK
@@ -280,7 +286,7 @@ def _filter(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, out, slots):
         for t in range(s, items, slots):
             i = t // n_blocks
             j0 = (t % n_blocks) * BLOCK
-            _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, eps, pad, i, j0,
+            _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0,
                          min(BLOCK, w - j0), cen, part, acc, out)
 
 
@@ -321,8 +327,7 @@ class Denoiser:
         t2 = time.perf_counter_ns()
         out = np.empty(inputs.shape + (3,), np.float32)
         _filter(sp, cp, vp, inside, params, int(radius), np.float32(1.0 / FEATURE_VAR_FLOOR),
-                np.float32(1e-10 * self.work["scale"] ** 2), pad, out,
-                numba.get_num_threads())
+                np.float32(self.work["scale"]), pad, out, numba.get_num_threads())
         if self.work["scale"] != 1.0:
             out /= np.float32(self.work["scale"])
         t3 = time.perf_counter_ns()
@@ -351,14 +356,11 @@ class Denoiser:
             inside = work["inside"] = np.zeros((h, wp), np.float32)
             inside[:, pad:pad + w] = 1.0
         aux = _buffer(work, "aux", (h, w, 3), np.float32)
-        peaks = _buffer(work, "peaks", (h, 2), np.float64)
+        peaks = _buffer(work, "peaks", (h,), np.float64)
         _signals(inputs.color, variance, inputs.position, inputs.normal, inputs.albedo, inputs.vis,
                  inputs.has_vis, inputs.spp, inputs.has_spp, float(mu[0]), float(mu[1]),
                  float(mu[2]), 1.0 / scale, sp[:, :, pad:pad + w], aux, pad, cp, vp, peaks, slots)
         work["scale"] = _colour_scale(peaks)
-        if work["scale"] != 1.0:
-            cp *= np.float32(work["scale"])
-            vp *= np.float32(work["scale"] ** 2)
         hh = _buffer(work, "haar", (h, w, 5), np.float32)
         _haar(sp[:, :, pad:pad + w], hh, slots)
         if self.keep:
@@ -381,12 +383,8 @@ class Denoiser:
 
 
 def _colour_scale(peaks: np.ndarray) -> float:
-    """1, or the power of two that brings the colours under 2^60 and the variances under 2^120."""
-    cmax = float(peaks[:, 0].max(initial=0.0))
-    vmax = float(peaks[:, 1].max(initial=0.0))
-    k = 0
-    if cmax > COLOUR_LIMIT:
-        k = max(k, math.ceil(math.log2(cmax)) - 60) if math.isfinite(cmax) else 68
-    if vmax > COLOUR_LIMIT**2:
-        k = max(k, (math.ceil(math.log2(vmax)) - 120 + 1) // 2)
-    return 2.0**-k
+    """1, or the power of two that brings the largest colour magnitude under 2^100."""
+    cmax = float(peaks.max(initial=0.0))
+    if cmax <= COLOUR_LIMIT:
+        return 1.0
+    return 2.0 ** (100 - math.ceil(math.log2(min(cmax, _FLOAT32_MAX))))
