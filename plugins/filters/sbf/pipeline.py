@@ -23,6 +23,9 @@ CHUNK = 16
 class SBFResult:
     """What one pass computed.
 
+    ``variance``, ``best`` and ``min_sure`` live in the caller's scratch (``work``): the next pass
+    with the same ``work`` overwrites them.
+
     Attributes
     ----------
     output : ndarray (H, W, 3) float32
@@ -114,20 +117,19 @@ def run_sbf(frame, params: SBFParams, kernels, work: dict | None = None,
     cand = _ring(work, "cand", (n_k, 3, rows, w), np.float32)
     sure = _ring(work, "sure", (n_k, rows, w + 2 * pad), np.float64)
     out = np.empty((h, w, 3), np.float32)
-    best = np.empty((h, w), np.int32)
-    min_sure = np.empty((h, w), np.float64)
+    best = _ring(work, "best", (h, w), np.int32)
+    min_sure = _ring(work, "min_sure", (h, w), np.float64)
     t1 = time.perf_counter_ns()
     kernels.sbf_pass(planes["cpad"], planes["fpad"], planes["inside"], planes["valid"], var,
                      _padded_table(table), first, radius, _padded_table(stable), pad, out, best,
                      min_sure, cand, sure, slots)
     t2 = time.perf_counter_ns()
     scale = planes["scale"]
-    variance = var.copy()
     if scale != 1.0:
         out /= np.float32(scale)
-        variance /= np.float32(scale * scale)
+        var /= np.float32(scale * scale)
         min_sure /= scale * scale
-    result = SBFResult(out, variance, best, min_sure)
+    result = SBFResult(out, var, best, min_sure)
     if keep:
         result.candidates = cand[:, :, :h].copy() / (np.float32(scale) if scale != 1.0 else 1)
         result.sure = sure[:, :h, pad:pad + w].copy() / (scale * scale)
