@@ -12,6 +12,8 @@ min, max) and process CPU ms (all threads; robust on a machine shared with other
 * ``x_vs_oidn`` and ``x_vs_opencv_jbf`` = filter ms / peer ms per round (above 1: slower).
 * ``--threads 1,2``: the filters again with ``numba.set_num_threads(n)``, alternating, and
   ``speedup_2_vs_1`` = (1-thread ms) / (2-thread ms) per round.
+* ``--stages``: single-thread process CPU ms of each stage (sbf: the pass with and without
+  the SURE smoothing; lbf: signals, features + network, bilateral).
 * ``--memory``: peak extra resident memory of one call of each filter at each resolution,
   measured in a fresh process (Linux: the peak resident size ``VmHWM`` is reset through
   ``/proc/self/clear_refs`` before the call and read after it, minus the resident size before;
@@ -21,7 +23,7 @@ min, max) and process CPU ms (all threads; robust on a machine shared with other
 Usage::
 
     python benchmarks/bench_sbf_lbf.py [--resolutions 1280x720,1920x1080] [--rounds 5]
-        [--threads 1,2] [--memory]
+        [--threads 1,2] [--memory] [--stages]
 """
 
 from __future__ import annotations
@@ -216,12 +218,62 @@ def memory_table(resolutions) -> None:
             print(f"| {name} | {w}x{h} | {kib / 1024:.0f} MiB | {per_px:.0f} | {per_px / 12:.1f} |")
 
 
+def stage_table(reg, frame, n: int) -> None:
+    """Single-thread process CPU ms of each stage (median of ``n``), both filters."""
+    from plugins.filters.lbf import cpu as lbf_cpu
+    from plugins.filters.lbf.features import gather_inputs
+
+    numba.set_num_threads(1)
+    sbf, lbf = build(reg, "sbf"), build(reg, "lbf")
+    sbf(frame)
+    lbf(frame)
+    inputs = gather_inputs(frame)
+    den = lbf.denoiser
+    w = frame.shape[1]
+
+    def cpu_ms(fn, *args):
+        c0 = time.process_time()
+        value = fn(*args)
+        return (time.process_time() - c0) * 1e3, value
+
+    rows = {}
+    for _ in range(n):
+        total, _ = cpu_ms(sbf, frame)
+        rows.setdefault("sbf: whole call", []).append(total)
+        p = sbf.params
+        try:  # the pass without SURE smoothing (1x1 table): bank + SURE + argmin only
+            object.__setattr__(p, "sure_scale", 0.0)
+            bank, _ = cpu_ms(sbf, frame)
+        finally:
+            object.__setattr__(p, "sure_scale", 4.0)
+        rows.setdefault("sbf: features + bank + SURE (no smoothing)", []).append(bank)
+        rows.setdefault("sbf: SURE smoothing + selection (difference)", []).append(total - bank)
+        feats = sbf.stage_ms["features"]
+        rows.setdefault("sbf: features (pack, variance; wall)", []).append(feats)
+        t1, planes = cpu_ms(den._signals, inputs, lbf.radius)
+        sp, cp, vp, inside, pad, hh, aux = planes
+        t2, params = cpu_ms(den._network, sp[:, :, pad:pad + w], aux, hh)
+        out = np.empty(frame["color"].shape, np.float32)
+        t3, _ = cpu_ms(lbf_cpu._filter, sp, cp, vp, inside, params, lbf.radius,
+                       np.float32(1e4), np.float32(1.0), pad, out, 1)
+        rows.setdefault("lbf: signals", []).append(t1)
+        rows.setdefault("lbf: features + network", []).append(t2)
+        rows.setdefault("lbf: bilateral", []).append(t3)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    print("\n| stage (1 thread) | CPU ms median (min-max) |")
+    print("|---|---|")
+    for name, vals in rows.items():
+        v = np.asarray(vals)
+        print(f"| {name} | {np.median(v):.0f} ({v.min():.0f}-{v.max():.0f}) |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--resolutions", default="1280x720,1920x1080")
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--threads", default="1,2", help="thread counts to compare ('' to skip)")
     ap.add_argument("--memory", action="store_true")
+    ap.add_argument("--stages", action="store_true", help="single-thread CPU ms per stage")
     args = ap.parse_args()
     resolutions = [tuple(int(v) for v in r.split("x")) for r in args.resolutions.split(",")]
     cpu_model = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo")
@@ -236,6 +288,8 @@ def main() -> None:
         speed_table(reg, frame, args.rounds)
         if args.threads:
             thread_table(reg, frame, args.rounds, [int(t) for t in args.threads.split(",")])
+        if args.stages:
+            stage_table(reg, frame, args.rounds)
     if args.memory:
         memory_table(resolutions)
     usage = resource.getrusage(resource.RUSAGE_SELF)
