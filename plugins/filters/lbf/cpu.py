@@ -124,12 +124,34 @@ def _vertical7(sig, aux, i, v):
             a1[j] += aux[ii, j, 1]
 
 
+@njit(cache=True, fastmath=True)
+def _horizontal7(v, box):
+    """``box[ch, j]``: sums of ``v[ch]`` over the clamped columns j-3..j+3 (vectorised inside)."""
+    w = v.shape[1]
+    for ch in range(v.shape[0]):
+        src = v[ch]
+        dst = box[ch]
+        if w > 6:
+            inner = dst[3:w - 3]
+            inner[:] = 0.0
+            for dj in range(7):
+                part = src[dj:dj + w - 6]
+                for j in range(w - 6):
+                    inner[j] += part[j]
+        for j in list(range(min(3, w))) + list(range(max(w - 3, 3), w)):
+            acc = 0.0
+            for dj in range(-3, 4):
+                acc += src[min(max(j + dj, 0), w - 1)]
+            dst[j] = acc
+
+
 @njit(parallel=True, cache=True)
 def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_out, keep, slots):
     h = sig.shape[1]
     w = sig.shape[2]
     for s in prange(slots):
         v = np.empty((K.N_BOX7, w))
+        box = np.empty((K.N_BOX7, w))
         col7 = np.empty(K.N_BOX7)
         med = np.empty(9)
         feat = np.empty(K.N_FEATURES)
@@ -138,12 +160,10 @@ def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_
         out = np.empty(K.N_OUT)
         for i in range(s, h, slots):
             _vertical7(sig, aux, i, v)
+            _horizontal7(v, box)
             for j in range(w):
                 for ch in range(K.N_BOX7):
-                    acc = 0.0
-                    for dj in range(-3, 4):
-                        acc += v[ch, min(max(j + dj, 0), w - 1)]
-                    col7[ch] = acc / 49.0
+                    col7[ch] = box[ch, j] / 49.0
                 _combine_px(i, j, sig, aux, hh, col7, med, feat)
                 if keep:
                     for f in range(K.N_FEATURES):
@@ -247,9 +267,10 @@ def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0,
                 e0 = c0[j] - q0[j]
                 e1 = c1[j] - q1[j]
                 e2 = c2[j] - q2[j]
-                d += p_c[j] * (e0 * e0 / (u0[j] + w0[j] + eps)
-                               + e1 * e1 / (u1[j] + w1[j] + eps)
-                               + e2 * e2 / (u2[j] + w2[j] + eps))
+                # max(., eps) is a no-op (variances >= 0) that lets LLVM vectorise the loop
+                d += p_c[j] * (e0 * e0 / max(u0[j] + w0[j] + eps, eps)
+                               + e1 * e1 / max(u1[j] + w1[j] + eps, eps)
+                               + e2 * e2 / max(u2[j] + w2[j] + eps, eps))
                 wt[j] = exp_neg(d) * m[j] if d <= cut else f32(0.0)
             for j in range(n):
                 e = wt[j] * scale
