@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from harness import CHANNELS, CameraPath, NonFiniteError, load_plugins, read_channels, write_capture, write_channels
-from harness.buffers import apply_nonfinite_policy
+from harness.nonfinite import apply_nonfinite_policy
 from harness.exr import layer_channels
 from plugins.renderers.captured import CaptureError, CaptureWarning, open_capture
 from plugins.renderers.captured import conventions as conv
