@@ -293,7 +293,8 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
                 resolution=scene.resolution,
                 kind=scene.kind,
                 suite=False,
-                tasks=getattr(scene, "tasks", None) or {"denoise"},
+                tasks=scene.params.get("tasks") or {"denoise"},
+                channels=scene.channels,
             )
         )
     if not specs:

@@ -23,6 +23,7 @@ import pandas as pd
 from harness.cache import array_hash, clean_temporaries, make_key
 from harness.errors import short_error
 from harness.executors.base import Executor, Shared
+from harness.exr import write_exr
 from harness.images import write_pictures
 from harness.jobs import GroupInputs, job_error_rows, skipped_row
 from harness.lock import FolderLock, check_out_dir
@@ -67,6 +68,7 @@ def run_plan(
     *,
     resume: bool = False,
     pictures: bool = False,
+    save_outputs: bool = False,
     progress: bool = True,
     on_status: Callable[[str], None] | None = None,
 ) -> RunOutcome:
@@ -86,6 +88,9 @@ def run_plan(
         Keep stored jobs whose identity is unchanged.
     pictures : bool
         Write PNGs of each job's first output, the input and the reference.
+    save_outputs : bool
+        Write every output as a linear HDR OpenEXR file:
+        ``DIR/outputs/<scene>/<filter>[-preset]-<backend>-spp<N>-seed<S>/<frame>.exr``.
     progress : bool
         Show a progress bar (frames) on standard error.
     on_status : callable, optional
@@ -100,14 +105,15 @@ def run_plan(
         clean_temporaries(out)
         if store.cache.enabled:
             clean_temporaries(store.cache.root)
-        return _Run(registry, plan, store, executor, out, resume, pictures, progress, on_status).execute()
+        return _Run(registry, plan, store, executor, out, resume, pictures, save_outputs, progress,
+                    on_status).execute()
 
 
 class _Run:
-    def __init__(self, registry, plan, store, executor, out, resume, pictures, progress, on_status):
+    def __init__(self, registry, plan, store, executor, out, resume, pictures, save_outputs, progress, on_status):
         self.registry, self.plan, self.store, self.executor = registry, plan, store, executor
         self.out, self.jobs_dir = out, out / "jobs"
-        self.resume, self.pictures, self.progress = resume, pictures, progress
+        self.resume, self.pictures, self.save_outputs, self.progress = resume, pictures, save_outputs, progress
         self.status = on_status or (lambda text: None)
         self.tables: dict[str, pd.DataFrame] = {}
         self.reused = self.removed = 0
@@ -176,7 +182,7 @@ class _Run:
             return
         key = make_key(group=[group.task, group.scene, group.renderer, group.spp, group.seed, sorted(group.channels),
                               group.frames, list(group.resolution), group.reference_spp, pending[0].scene_hash])
-        keep = "first" if self.pictures else "none"
+        keep = "all" if self.save_outputs else ("first" if self.pictures else "none")
         tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
         for index, outcome in self.executor.run(tasks, progress=bar.update):
             job = pending[index]
@@ -187,10 +193,15 @@ class _Run:
                 rows, outputs = job_error_rows(job, outcome.error, frame=min(outcome.progress, group.frames - 1)), {}
                 bar.update(max(group.frames - outcome.progress, 0))
             self._store(job.job_id, make_table(rows, self.plan.metric_names))
-            if 0 in outputs:
-                preset = f"-{job.preset}" if job.preset else ""
+            preset = f"-{job.preset}" if job.preset else ""
+            if self.pictures and 0 in outputs:
                 write_pictures(self.out / "images" / job.scene, f"{job.filter}{preset}-{job.backend}-spp{job.spp}",
                                outputs[0], inputs.frames[0]["color"], f"input-spp{job.spp}", inputs.references[0])
+            if self.save_outputs:
+                name = f"{job.filter}{preset}-{job.backend}-spp{job.spp}-seed{job.seed}"
+                folder = self.out / "outputs" / job.scene / name
+                for t, image in outputs.items():
+                    write_exr(folder / f"{t:04d}.exr", image)
 
     def _inputs(self, group: Group, adaptive: bool) -> GroupInputs:
         store = self.store

@@ -79,7 +79,7 @@ def _run(registry, args, tasks) -> int:
           f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
-                           progress=_progress(args))
+                           save_outputs=args.save_outputs, progress=_progress(args))
     df = outcome.table
     if args.csv:
         df.to_csv(args.out / "results.csv", index=False)
@@ -259,6 +259,20 @@ def cmd_profiles(registry, args) -> int:
     print()
     for p in table:
         print(f"{p['name']}: {p['description']}")
+    return 0
+
+
+def cmd_export(registry, args) -> int:
+    """Write every selected scene as a capture folder (multi-layer EXR frames, references, sidecar)."""
+    from harness.export import export_scene
+
+    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
+    for spec in specs:
+        sidecar = export_scene(registry, store, spec, args.out / spec.name, task=args.task, renderer=args.renderer,
+                               frames=args.frames, spp=args.spp, seed=args.seed, reference_spp=args.reference_spp,
+                               half=args.half)
+        print(f"{spec.name}: written to {sidecar.parent} (open it with --scene-dir {sidecar.parent})")
     return 0
 
 

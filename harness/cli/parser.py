@@ -235,6 +235,8 @@ def build_parser() -> Parser:
     run.add_argument("--out", type=out_dir, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
     run.add_argument("--csv", action="store_true", help="also write results.csv")
     run.add_argument("--pictures", action="store_true", help="write PNGs of every filter's first frame")
+    run.add_argument("--save-outputs", action="store_true",
+                     help="write every filter output as linear HDR OpenEXR under OUT/outputs/")
     run.add_argument("--resume", action="store_true",
                      help="keep stored jobs whose inputs are unchanged, run the rest")
     run.add_argument("--strict", action="store_true", help="exit 1 if any job errored")
@@ -272,6 +274,17 @@ def build_parser() -> Parser:
                         help="stop at this median relative standard error (default: the profile's)")
     render.add_argument("--chunk", type=integer(1), default=64, help="samples per chunk between checkpoints")
     _add_common(render)
+
+    export = sub.add_parser("export", help="write scenes' frames, G-buffers and references as OpenEXR captures")
+    _add_selection(export)
+    export.add_argument("--out", type=out_dir, required=True, help="folder receiving one capture folder per scene")
+    export.add_argument("--task", choices=list(TASKS), default="denoise", help="whose frames and references")
+    export.add_argument("--spp", type=integer(1), default=1, help="samples per pixel of the frames (default 1)")
+    export.add_argument("--seed", type=integer(0), default=0, help="seed of the frames (default 0)")
+    export.add_argument("--reference-spp", type=integer(1), default=None,
+                        help="samples per pixel of references (default: the renderer's)")
+    export.add_argument("--half", action="store_true", help="store half floats (smaller; not bit-exact)")
+    _add_common(export)
 
     bench = sub.add_parser("bench", help="time filters per frame against peers in the same process")
     bench.add_argument("filters", type=names, help="filter(s) to time, comma-separated")
