@@ -1,0 +1,180 @@
+"""``eaw`` and ``svgf`` against their peers and their memory floors, in one process, alternating.
+
+For each resolution and thread count, one ``synthetic-moving`` frame (the channels the four
+filters read) is filtered by every selected filter in turn, round after round (the order
+rotates each round), so that a change of machine load hits all of them alike. Each call is
+timed in wall-clock time and in process CPU time (all threads together). ``svgf`` is timed as
+``denoise-bench bench`` times it: on frame 1, with the history of frame 0, on a fresh copy of
+the filter each call (``--steady`` times it on frame ``--warm`` instead, after ``--warm``
+frames: temporal variance everywhere).
+
+The floors are the issue's limit: a kernel that only reads every input buffer the filter
+declares (and the frame holds) and writes one output frame, on the same threads. The ratios
+are taken round by round (filter time / other's time in the same round) and reported as
+median and range.
+
+Usage::
+
+    python benchmarks/bench_eaw_svgf.py --resolution 1280x720 --threads 1,2 --rounds 7
+    python benchmarks/bench_eaw_svgf.py --resolution 1280x720,1920x1080 --threads 2 \\
+        --filters eaw,svgf,floor_eaw,floor_svgf
+
+``--threads`` sets Numba's threads, OpenCV's (``cv2.setNumThreads``) and OIDN's (device
+``numThreads``); the process is started with as many Numba threads as the largest value.
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import time
+
+import numpy as np
+from numba import get_num_threads, njit, prange, set_num_threads
+
+from harness import load_plugins
+
+#: the channels the four filters read (eaw: color, normal, position; svgf: color, albedo,
+#: normal, depth, object_id, motion, direct, indirect, emission; opencv_jbf: color, normal;
+#: oidn: color, albedo, normal)
+CHANNELS = frozenset({"color", "normal", "position", "albedo", "depth", "object_id", "motion",
+                      "direct", "indirect", "emission"})
+
+
+@njit(parallel=True, cache=True)
+def floor_eaw(color, normal, position, out):
+    """Read every input ``eaw`` declares, write one frame (the memory floor)."""
+    h, w = color.shape[:2]
+    for y in prange(h):
+        for x in range(w):
+            for c in range(3):
+                out[y, x, c] = color[y, x, c] + normal[y, x, c] + position[y, x, c]
+
+
+@njit(parallel=True, cache=True)
+def floor_svgf(color, direct, indirect, emission, albedo, normal, depth, object_id, motion, out):
+    """Read every input ``svgf`` declares (optional ones included), write one frame."""
+    h, w = color.shape[:2]
+    for y in prange(h):
+        for x in range(w):
+            g = depth[y, x] + np.float32(object_id[y, x]) + motion[y, x, 0] + motion[y, x, 1]
+            for c in range(3):
+                out[y, x, c] = (color[y, x, c] + direct[y, x, c] + indirect[y, x, c] + emission[y, x, c]
+                                + albedo[y, x, c] + normal[y, x, c] + g)
+
+
+class Floor:
+    """A floor kernel with the filter call signature."""
+
+    def __init__(self, kernel, names):
+        self.kernel, self.names, self.out = kernel, names, None
+
+    def __call__(self, frame):
+        if self.out is None or self.out.shape != frame["color"].shape:
+            self.out = np.empty_like(frame["color"])
+        self.kernel(*(frame[n] for n in self.names), self.out)
+        return self.out
+
+
+def set_threads(n: int, filters: dict) -> None:
+    """Numba, OpenCV and OIDN on ``n`` threads."""
+    set_num_threads(n)
+    try:
+        import cv2
+
+        cv2.setNumThreads(n)
+    except ImportError:
+        pass
+    oidn = filters.get("oidn")
+    if oidn is not None:
+        import pyoidn
+
+        device = pyoidn.Device()
+        device.set_int("numThreads", n)
+        device.commit()
+        oidn._device = device
+
+
+def build(reg, names, steady, frames):
+    """name -> callable(frame) (svgf: a fresh copy of a primed filter per call)."""
+    filters = {}
+    for name in names:
+        if name == "floor_eaw":
+            filters[name] = Floor(floor_eaw, ("color", "normal", "position"))
+        elif name == "floor_svgf":
+            filters[name] = Floor(floor_svgf, ("color", "direct", "indirect", "emission", "albedo", "normal",
+                                               "depth", "object_id", "motion"))
+        elif name in reg.filters:
+            filters[name] = reg.filters[name].factory(backend="cpu")
+        else:
+            print(f"{name}: not registered, skipped")
+    return filters
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--resolution", default="1280x720", help="comma-separated WxH list")
+    ap.add_argument("--threads", default="", help="comma-separated thread counts (default: all)")
+    ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--filters", default="eaw,svgf,opencv_jbf,oidn,floor_eaw,floor_svgf")
+    ap.add_argument("--scene", default="synthetic-moving")
+    ap.add_argument("--steady", action="store_true", help="time svgf after --warm frames")
+    ap.add_argument("--warm", type=int, default=6)
+    args = ap.parse_args()
+    reg = load_plugins()
+    renderer = reg.renderers["synthetic"].factory()
+    scene = reg.scenes[args.scene].factory()
+    names = [n for n in args.filters.split(",") if n]
+    threads = [int(t) for t in args.threads.split(",") if t] or [get_num_threads()]
+    for res in args.resolution.split(","):
+        w, h = (int(v) for v in res.split("x"))
+        count = args.warm + 1 if args.steady else 2
+        frames = [renderer.render(scene, k, spp=1, seed=0, channels=CHANNELS, resolution=(w, h))
+                  for k in range(count)]
+        timed = frames[-1]
+        filters = build(reg, names, args.steady, frames)
+        for n in threads:
+            set_threads(n, filters)
+            primed = {}
+            for name, f in filters.items():
+                if getattr(reg.filters.get(name), "temporal", False):
+                    f.reset()
+                    for fr in frames[:-1]:
+                        f(fr)
+                    primed[name] = f
+                f(timed) if name not in primed else copy.deepcopy(f)(timed)  # compile / warm up
+            wall = {k: [] for k in filters}
+            cpu = {k: [] for k in filters}
+            stages = {k: [] for k in filters}
+            order = list(filters)
+            for r in range(args.rounds):
+                for name in order[r % len(order):] + order[:r % len(order)]:
+                    f = copy.deepcopy(primed[name]) if name in primed else filters[name]
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    f(timed)
+                    wall[name].append((time.perf_counter() - t0) * 1e3)
+                    cpu[name].append((time.process_time() - c0) * 1e3)
+                    stages[name].append(dict(getattr(f, "stage_ms", {}) or {}))
+            print(f"\n{w}x{h}, {n} thread(s), {args.rounds} rounds, scene {args.scene}"
+                  f"{', svgf steady state' if args.steady else ''}; ms per frame")
+            print(f"{'filter':12s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
+            for name in filters:
+                print(f"{name:12s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
+                      f"{min(cpu[name]):9.1f} {np.median(cpu[name]):9.1f}")
+            pairs = [("eaw", "opencv_jbf"), ("eaw", "floor_eaw"), ("svgf", "oidn"), ("svgf", "floor_svgf"),
+                     ("svgf", "eaw")]
+            for a, b in pairs:
+                if a in filters and b in filters:
+                    for label, t in (("wall", wall), ("cpu", cpu)):
+                        ratio = np.array(t[b]) / np.array(t[a])
+                        print(f"  {b} / {a} ({label}, per round): median {np.median(ratio):.2f}, "
+                              f"range {ratio.min():.2f}-{ratio.max():.2f}")
+            for name in filters:
+                if stages[name] and stages[name][0]:
+                    keys = stages[name][0]
+                    text = ", ".join(f"{k} {np.median([s[k] for s in stages[name]]):.1f}" for k in keys)
+                    print(f"  {name} stages (median ms): {text}")
+
+
+if __name__ == "__main__":
+    main()
