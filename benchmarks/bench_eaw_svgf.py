@@ -21,13 +21,23 @@ Usage::
 
 ``--threads`` sets Numba's threads, OpenCV's (``cv2.setNumThreads``) and OIDN's (device
 ``numThreads``); the process is started with as many Numba threads as the largest value.
+
+``--baseline REF`` adds ``eaw@REF`` and ``svgf@REF``: the two plugins as they were at git
+revision ``REF`` of this checkout (extracted to a temporary folder and imported from there),
+timed in the same rounds, for before/after figures; the output difference of each against the
+current plugin (max abs difference over the image's range) is printed too.
 """
 
 from __future__ import annotations
 
 import argparse
 import copy
+import importlib
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 from numba import get_num_threads, njit, prange, set_num_threads
@@ -35,8 +45,8 @@ from numba import get_num_threads, njit, prange, set_num_threads
 from harness import load_plugins
 
 #: the channels the four filters read (eaw: color, normal, position; svgf: color, albedo,
-#: normal, depth, object_id, motion, direct, indirect, emission; opencv_jbf: color, normal;
-#: oidn: color, albedo, normal)
+#: normal, depth, object_id, motion, indirect, emission; opencv_jbf: color, normal; oidn:
+#: color, albedo, normal); the svgf baseline of ``--baseline`` also reads direct
 CHANNELS = frozenset({"color", "normal", "position", "albedo", "depth", "object_id", "motion",
                       "direct", "indirect", "emission"})
 
@@ -52,15 +62,15 @@ def floor_eaw(color, normal, position, out):
 
 
 @njit(parallel=True, cache=True)
-def floor_svgf(color, direct, indirect, emission, albedo, normal, depth, object_id, motion, out):
+def floor_svgf(color, indirect, emission, albedo, normal, depth, object_id, motion, out):
     """Read every input ``svgf`` declares (optional ones included), write one frame."""
     h, w = color.shape[:2]
     for y in prange(h):
         for x in range(w):
             g = depth[y, x] + np.float32(object_id[y, x]) + motion[y, x, 0] + motion[y, x, 1]
             for c in range(3):
-                out[y, x, c] = (color[y, x, c] + direct[y, x, c] + indirect[y, x, c] + emission[y, x, c]
-                                + albedo[y, x, c] + normal[y, x, c] + g)
+                out[y, x, c] = (color[y, x, c] + indirect[y, x, c] + emission[y, x, c] + albedo[y, x, c]
+                                + normal[y, x, c] + g)
 
 
 class Floor:
@@ -95,17 +105,40 @@ def set_threads(n: int, filters: dict) -> None:
         oidn._device = device
 
 
-def build(reg, names, steady, frames):
-    """name -> callable(frame) (svgf: a fresh copy of a primed filter per call)."""
+def baseline_factories(ref: str) -> dict:
+    """``{"eaw@REF": factory, "svgf@REF": factory}``: the plugins at git revision ``ref``."""
+    root = Path(__file__).resolve().parents[1]
+    folder = Path(tempfile.mkdtemp(prefix="bench-baseline-"))
+    factories = {}
+    for name in ("eaw", "svgf"):
+        package = folder / f"baseline_{name}"
+        package.mkdir()
+        files = subprocess.run(["git", "ls-tree", "--name-only", ref, f"plugins/filters/{name}/"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.split()
+        for path in files:
+            if path.endswith(".py"):
+                source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=root, capture_output=True, text=True,
+                                        check=True).stdout
+                (package / Path(path).name).write_text(source)
+    sys.path.insert(0, str(folder))
+    for name in ("eaw", "svgf"):
+        factories[f"{name}@{ref}"] = importlib.import_module(f"baseline_{name}").make_filter
+    return factories
+
+
+def build(reg, names, baselines):
+    """name -> filter (temporal ones are primed and copied per call by the caller)."""
     filters = {}
     for name in names:
         if name == "floor_eaw":
             filters[name] = Floor(floor_eaw, ("color", "normal", "position"))
         elif name == "floor_svgf":
-            filters[name] = Floor(floor_svgf, ("color", "direct", "indirect", "emission", "albedo", "normal",
-                                               "depth", "object_id", "motion"))
+            filters[name] = Floor(floor_svgf, ("color", "indirect", "emission", "albedo", "normal", "depth",
+                                               "object_id", "motion"))
         elif name in reg.filters:
             filters[name] = reg.filters[name].factory(backend="cpu")
+        elif name in baselines:
+            filters[name] = baselines[name](backend="cpu")
         else:
             print(f"{name}: not registered, skipped")
     return filters
@@ -120,11 +153,14 @@ def main() -> None:
     ap.add_argument("--scene", default="synthetic-moving")
     ap.add_argument("--steady", action="store_true", help="time svgf after --warm frames")
     ap.add_argument("--warm", type=int, default=6)
+    ap.add_argument("--baseline", default="", help="git revision whose eaw and svgf are timed too")
     args = ap.parse_args()
     reg = load_plugins()
     renderer = reg.renderers["synthetic"].factory()
     scene = reg.scenes[args.scene].factory()
     names = [n for n in args.filters.split(",") if n]
+    baselines = baseline_factories(args.baseline) if args.baseline else {}
+    names += [n for n in baselines if n.split("@")[0] in names]
     threads = [int(t) for t in args.threads.split(",") if t] or [get_num_threads()]
     for res in args.resolution.split(","):
         w, h = (int(v) for v in res.split("x"))
@@ -132,17 +168,19 @@ def main() -> None:
         frames = [renderer.render(scene, k, spp=1, seed=0, channels=CHANNELS, resolution=(w, h))
                   for k in range(count)]
         timed = frames[-1]
-        filters = build(reg, names, args.steady, frames)
+        filters = build(reg, names, baselines)
+        temporal = {n for n in filters if n.split("@")[0] == "svgf"}
         for n in threads:
             set_threads(n, filters)
             primed = {}
+            outs = {}
             for name, f in filters.items():
-                if getattr(reg.filters.get(name), "temporal", False):
+                if name in temporal:
                     f.reset()
                     for fr in frames[:-1]:
                         f(fr)
                     primed[name] = f
-                f(timed) if name not in primed else copy.deepcopy(f)(timed)  # compile / warm up
+                outs[name] = (copy.deepcopy(f) if name in primed else f)(timed)  # compile / warm up
             wall = {k: [] for k in filters}
             cpu = {k: [] for k in filters}
             stages = {k: [] for k in filters}
@@ -155,14 +193,20 @@ def main() -> None:
                     wall[name].append((time.perf_counter() - t0) * 1e3)
                     cpu[name].append((time.process_time() - c0) * 1e3)
                     stages[name].append(dict(getattr(f, "stage_ms", {}) or {}))
+            span = float(timed["color"].max() - timed["color"].min())
+            for base in baselines:
+                now = base.split("@")[0]
+                if base in outs and now in outs:
+                    diff = np.abs(outs[base].astype(np.float64) - outs[now]).max() / span
+                    print(f"{now} against {base}: max abs difference / range of the input {diff:.2e}")
             print(f"\n{w}x{h}, {n} thread(s), {args.rounds} rounds, scene {args.scene}"
                   f"{', svgf steady state' if args.steady else ''}; ms per frame")
-            print(f"{'filter':12s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
+            print(f"{'filter':16s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
             for name in filters:
-                print(f"{name:12s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
+                print(f"{name:16s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
                       f"{min(cpu[name]):9.1f} {np.median(cpu[name]):9.1f}")
             pairs = [("eaw", "opencv_jbf"), ("eaw", "floor_eaw"), ("svgf", "oidn"), ("svgf", "floor_svgf"),
-                     ("svgf", "eaw")]
+                     ("svgf", "eaw")] + [(n.split("@")[0], n) for n in baselines]
             for a, b in pairs:
                 if a in filters and b in filters:
                     for label, t in (("wall", wall), ("cpu", cpu)):

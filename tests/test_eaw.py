@@ -14,8 +14,8 @@ import pytest
 
 from harness import CHANNELS, Frame, FrameMeta, load_plugins
 from plugins.filters.eaw import make_filter
-from plugins.filters.eaw.layout import padded_stride
 from plugins.filters.eaw.fastexp import A_MAX, fast_exp_array
+from plugins.filters.eaw.layout import padded_stride
 from plugins.filters.eaw.params import DEFAULTS, EAWParams
 
 ROOT = Path(__file__).resolve().parents[1]
