@@ -378,6 +378,28 @@ def test_emission_improves_cornell(registry):
     assert _rmse(out, ref, everywhere) < 0.3 * _rmse(plain, ref, everywhere)
 
 
+def test_parallel_path_equals_one_thread(registry, renderer):
+    """Frames of 256x256 pixels and more run on all threads (smaller ones on one): the result
+    does not depend on the number of threads (no sum is split between threads)."""
+    from numba import get_num_threads, set_num_threads
+
+    from plugins.filters.svgf.pipeline import SERIAL_MAX_PIXELS
+
+    seq = _sequence(registry, renderer, "synthetic-moving", 2, (256, 257), seed=4)
+    assert 256 * 257 >= SERIAL_MAX_PIXELS
+    threads = get_num_threads()
+    outs = []
+    for n in (threads, 1):
+        set_num_threads(n)
+        try:
+            filt = _svgf(registry)
+            outs.append([filt(frame) for frame, _ in seq])
+        finally:
+            set_num_threads(threads)
+    for a, b in zip(*outs):
+        np.testing.assert_array_equal(a, b)
+
+
 def _atrous_oracle():
     from numba import njit
 
