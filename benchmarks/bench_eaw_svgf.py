@@ -22,10 +22,11 @@ Usage::
 ``--threads`` sets Numba's threads, OpenCV's (``cv2.setNumThreads``) and OIDN's (device
 ``numThreads``); the process is started with as many Numba threads as the largest value.
 
-``--baseline REF`` adds ``eaw@REF`` and ``svgf@REF``: the two plugins as they were at git
-revision ``REF`` of this checkout (extracted to a temporary folder and imported from there),
-timed in the same rounds, for before/after figures; the output difference of each against the
-current plugin (max abs difference over the image's range) is printed too.
+``--baseline REF`` adds ``NAME@REF`` for each selected one of ``eaw``, ``svgf``,
+``opencv_jbf``, ``oidn``: the plugin as it was at git revision ``REF`` of this checkout
+(extracted to a temporary folder and imported from there), timed in the same rounds, for
+before/after figures; the output difference of each against the current plugin (max abs
+difference over the image's range) is printed too.
 
 ``--cpu-stages`` makes the filters' ``stage_ms`` process CPU time instead of wall-clock time
 (the plugins' stage clocks are pointed at ``time.process_time``): on a machine shared with
@@ -100,22 +101,28 @@ def set_threads(n: int, filters: dict) -> None:
         cv2.setNumThreads(n)
     except ImportError:
         pass
-    oidn = filters.get("oidn")
-    if oidn is not None:
-        import pyoidn
+    for name, f in filters.items():
+        if name.split("@")[0] == "oidn":
+            import pyoidn
 
-        device = pyoidn.Device()
-        device.set_int("numThreads", n)
-        device.commit()
-        oidn._device = device
+            device = pyoidn.Device()
+            device.set_int("numThreads", n)
+            device.commit()
+            f._device = device
 
 
-def baseline_factories(ref: str) -> dict:
-    """``{"eaw@REF": factory, "svgf@REF": factory}``: the plugins at git revision ``ref``."""
+BASELINE_PLUGINS = ("eaw", "svgf", "opencv_jbf", "oidn")
+
+
+def baseline_factories(ref: str, names) -> dict:
+    """``{"NAME@REF": factory}`` for the selected plugins of :data:`BASELINE_PLUGINS` as they
+    were at git revision ``ref`` (extracted to a temporary folder, imported from there)."""
     root = Path(__file__).resolve().parents[1]
     folder = Path(tempfile.mkdtemp(prefix="bench-baseline-"))
     factories = {}
-    for name in ("eaw", "svgf"):
+    for name in BASELINE_PLUGINS:
+        if name not in names:
+            continue
         package = folder / f"baseline_{name}"
         package.mkdir()
         files = subprocess.run(["git", "ls-tree", "--name-only", ref, f"plugins/filters/{name}/"], cwd=root,
@@ -126,8 +133,10 @@ def baseline_factories(ref: str) -> dict:
                                         check=True).stdout
                 (package / Path(path).name).write_text(source)
     sys.path.insert(0, str(folder))
-    for name in ("eaw", "svgf"):
-        factories[f"{name}@{ref}"] = importlib.import_module(f"baseline_{name}").make_filter
+    for name in BASELINE_PLUGINS:
+        if name in names:
+            spec = importlib.import_module(f"baseline_{name}").register_filters()[0]
+            factories[f"{name}@{ref}"] = spec.factory
     return factories
 
 
@@ -158,15 +167,15 @@ def main() -> None:
     ap.add_argument("--scene", default="synthetic-moving")
     ap.add_argument("--steady", action="store_true", help="time svgf after --warm frames")
     ap.add_argument("--warm", type=int, default=6)
-    ap.add_argument("--baseline", default="", help="git revision whose eaw and svgf are timed too")
+    ap.add_argument("--baseline", default="", help="git revision whose plugins are timed too")
     ap.add_argument("--cpu-stages", action="store_true", help="stage_ms in process CPU time (one thread)")
     args = ap.parse_args()
     reg = load_plugins()
     renderer = reg.renderers["synthetic"].factory()
     scene = reg.scenes[args.scene].factory()
     names = [n for n in args.filters.split(",") if n]
-    baselines = baseline_factories(args.baseline) if args.baseline else {}
-    names += [n for n in baselines if n.split("@")[0] in names]
+    baselines = baseline_factories(args.baseline, names) if args.baseline else {}
+    names += list(baselines)
     if args.cpu_stages:
         cpu_clock = types.SimpleNamespace(perf_counter=time.process_time)
         for module in ("plugins.filters.eaw.cpu", "plugins.filters.svgf.pipeline", "baseline_eaw.cpu",
@@ -215,9 +224,10 @@ def main() -> None:
                     print(f"{now} against {base}: max abs difference / range of the input {diff:.2e}")
             print(f"\n{w}x{h}, {n} thread(s), {args.rounds} rounds, scene {args.scene}"
                   f"{', svgf steady state' if args.steady else ''}; ms per frame")
-            print(f"{'filter':16s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
+            width = max(16, *(len(name) for name in filters))
+            print(f"{'filter':{width}s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
             for name in filters:
-                print(f"{name:16s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
+                print(f"{name:{width}s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
                       f"{min(cpu[name]):9.1f} {np.median(cpu[name]):9.1f}")
             pairs = [("eaw", "opencv_jbf"), ("eaw", "floor_eaw"), ("svgf", "oidn"), ("svgf", "floor_svgf"),
                      ("svgf", "eaw")] + [(n.split("@")[0], n) for n in baselines]
