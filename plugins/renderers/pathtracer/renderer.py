@@ -11,31 +11,12 @@ from harness import Frame, FrameMeta, Scene
 
 from .gbuffer import gbuffer
 from .integrator import STRATEGIES, accumulate_samples, first_hits
+from .pixels import PixelState
+from .sampler import PathSampler
 from .scenedata import SceneData, build_scene_data
 
 OWNER = "renderer 'pathtracer'"
 GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "emission", "visibility")
-
-
-class PixelState:
-    """Running per-pixel sums of one frame: what a :class:`Frame` is computed from.
-
-    Attributes
-    ----------
-    acc, acc_sq, acc_direct : ndarray (N, 3) float64
-        Sums of radiance, squared radiance and direct radiance over the samples taken.
-    shadow : ndarray (N, 2) float64
-        First-hit light samples and those that reached their light.
-    spp : ndarray (N,) int64
-        Samples taken per pixel.
-    """
-
-    def __init__(self, n: int):
-        self.acc = np.zeros((n, 3))
-        self.acc_sq = np.zeros((n, 3))
-        self.acc_direct = np.zeros((n, 3))
-        self.shadow = np.zeros((n, 2))
-        self.spp = np.zeros(n, np.int64)
 
 
 class FrameSetup:
@@ -253,7 +234,5 @@ class PathTracer:
     def sampler(self, scene: Scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(),
                 resolution=None):
         """An adaptive-sampling service starting with ``spp`` samples in every pixel."""
-        from .sampler import PathSampler
-
         return PathSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels,
                            resolution=resolution)
