@@ -7,9 +7,10 @@ Usage::
                                           [--baseline FOLDER]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
 
-``--baseline FOLDER``: FOLDER holds a copy of an earlier ``pathtracer`` package (e.g. exported
-from an earlier commit with ``git archive``); its frames are timed too, alternating with ours and
-Mitsuba's frame by frame in this one process, so all three see the same machine load.
+``--baseline FOLDER``: FOLDER is a copy of the project at an earlier commit (``git archive REV |
+tar -x -C FOLDER``); its path tracer renders the scene as its own Mitsuba loader loads it, and its
+frames are timed too, alternating with ours and Mitsuba's frame by frame in this one process, so
+all three see the same machine load.
 
 ``--ratios``: instead of timing, converged images of the third-party scenes (``--scenes``,
 default classroom, living-room, sponza) by both renderers, and the ratio harness / Mitsuba 3 of
@@ -39,6 +40,7 @@ import re
 import statistics
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numba
@@ -86,17 +88,24 @@ def frame_of(renderer_class, scene, args):
     return frame
 
 
-def baseline_class(folder: Path):
-    """``PathTracer`` of the package copy in ``folder`` (imported under its folder's name)."""
+def _import_copy(folder: Path, name: str):
+    """The package in ``folder`` imported as ``name`` (its relative imports stay inside the copy)."""
     import importlib.util
     import sys
 
-    init = folder / "__init__.py"
-    spec = importlib.util.spec_from_file_location(folder.name, init, submodule_search_locations=[str(folder)])
+    spec = importlib.util.spec_from_file_location(name, folder / "__init__.py",
+                                                  submodule_search_locations=[str(folder)])
     module = importlib.util.module_from_spec(spec)
-    sys.modules[folder.name] = module
+    sys.modules[name] = module
     spec.loader.exec_module(module)
-    return module.PathTracer
+    return module
+
+
+def baseline(root: Path):
+    """(``PathTracer`` class, Mitsuba ``load`` function) of an earlier copy of the project at ``root``."""
+    tracer = _import_copy(root / "plugins" / "renderers" / "pathtracer", "baseline_pathtracer")
+    loader = _import_copy(root / "plugins" / "scenes" / "mitsuba", "baseline_mitsuba")
+    return tracer.PathTracer, loader.load
 
 
 def _camel(name: str) -> str:
@@ -248,9 +257,7 @@ def main() -> None:
         return
     from plugins.renderers.pathtracer import PathTracer
 
-    classes = {"pathtracer": PathTracer}
-    if args.baseline is not None:
-        classes = {"baseline": baseline_class(args.baseline.resolve()), **classes}
+    old = baseline(args.baseline.resolve()) if args.baseline is not None else None
     rows = []
     for name in args.scenes or ["atrium", "classroom"]:
         scene = harness_scene(registry, name)
@@ -259,8 +266,14 @@ def main() -> None:
             continue
         print(f"{name}: {len(scene.triangles(0).material)} triangles", flush=True)
         with tempfile.TemporaryDirectory() as tmp:
-            fns = {label: frame_of(cls, scene, args) for label, cls in classes.items()}
             folder = SCENES / name
+            fns = {}
+            if old is not None:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    old_scene = old[1](folder) if (folder / "scene.xml").is_file() else scene
+                fns["baseline"] = frame_of(old[0], old_scene, args)
+            fns["pathtracer"] = frame_of(PathTracer, scene, args)
             if not args.no_mitsuba and (folder / "scene.xml").is_file():
                 fns["mitsuba3"] = mitsuba_frame(folder, scene, args, Path(tmp))
             for label, times in alternating(fns, args.repeats).items():

@@ -8,14 +8,18 @@ harness loads the file with its Mitsuba plugin and renders it with the path trac
 the same file with several seeds.
 
 The statistical test, per region of a 4x4 grid: ``z = (H - M) / sqrt(var_H + var_M)``, where
-``H`` is the harness's region mean (pixel areas integrated on a 3x3 grid of pixel centres, as
+``H`` is the harness's region mean (pixel areas integrated on a 4x4 grid of pixel centres, as
 Mitsuba samples pixel areas) with ``var_H`` the sum of its pixels' variance-of-the-mean channel
 over the region's pixel count squared, and ``M`` the mean of Mitsuba's renders over its seeds
 with ``var_M`` from the per-pixel spread between seeds, summed the same way (pooled over the
-region's pixels, so the noise estimate itself is precise). A case passes when every region (and
+region's pixels, so the noise estimate itself is precise), plus ``(0.004 M)^2``: the 4x4 grid of
+centres integrates a pixel that a silhouette crosses only to a sixteenth of its area, which moves
+a region mean by up to about 0.4% (measured on these scenes), and the noiseless background differs
+by float32 rounding only. A case passes when every region (and
 colour channel) has ``|z| <= Z_MAX``. With 16 x 3 comparisons per case and 30 cases, ``Z_MAX =
 4.5`` gives a false failure about once in 200 runs of the whole file; a missing Fresnel factor
-shifts region means by 5-50%, i.e. tens of standard errors (``docs/pathtracer.md``, mutation checks).
+shifts region means by 5-50%, i.e. more than ten times that margin (``docs/pathtracer.md``,
+mutation checks).
 
 Needs the optional ``validate`` extra (``pip install -e ".[validate]"``: Mitsuba 3); skipped
 with a message without it. Only the ``scalar_rgb`` variant is used.
@@ -37,18 +41,19 @@ from plugins.scenes.mitsuba import MitsubaWarning, load  # noqa: E402
 pytestmark = pytest.mark.slow
 
 Z_MAX = 4.5
+MARGIN = 4e-3  # relative: the harness integrates pixel areas on a 4x4 grid of centres (exact to ~0.4% at edges)
 SIZE = 32  # Mitsuba's film; the harness renders SUPER x SUPER pixel centres per pixel
-SUPER = 3
+SUPER = 4
 GRID = 4
 MAX_DEPTH = 6
 SEEDS = 8
 MITSUBA_SPP = 64
-HARNESS_SPP = 64
+HARNESS_SPP = 36
 
 BSDFS = {
     "diffuse-textured": """<bsdf type="diffuse"><texture type="bitmap" name="reflectance">
-        <string name="filename" value="checker.png"/><float name="uscale" value="3"/><float name="vscale" value="2"/>
-        </texture></bsdf>""",
+        <string name="filename" value="checker.png"/>
+        <transform name="to_uv"><scale x="3" y="2"/><translate x="0.25"/></transform></texture></bsdf>""",
     "plastic": """<bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.6, 0.2, 0.1"/>
         <float name="int_ior" value="1.5"/></bsdf>""",
     "plastic-nonlinear": """<bsdf type="plastic"><rgb name="diffuse_reflectance" value="0.9, 0.5, 0.2"/>
@@ -189,7 +194,8 @@ def compare(xml_path):
     h_mean, h_var = render_harness(xml_path)
     hm, hv = region_stats(h_mean, h_var)
     mm, mv = region_stats(m_mean, m_var)
-    z = (hm - mm) / np.sqrt(np.maximum(hv + mv, 1e-30))
+    margin = (MARGIN * mm) ** 2
+    z = (hm - mm) / np.sqrt(np.maximum(hv + mv + margin, 1e-30))
     ratio = (hm + 1e-6) / (mm + 1e-6)
     return z, ratio
 

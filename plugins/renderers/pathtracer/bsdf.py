@@ -162,7 +162,7 @@ def _sample_vndf(wo, a, u1, u2):
     return normalize((a * nh[0], a * nh[1], max(nh[2], 0.0)))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _legacy_sample(kind, alb, alpha, spec, ior, wo, u1, u2, u3):
     """Sample an incident direction (harness kinds).
 
@@ -266,7 +266,7 @@ def _alphas(node, nf):
     return max(nf[node, F_AU], 1e-4), max(nf[node, F_AV], 1e-4), int(nf[node, F_DIST])
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def _rough_dielectric(node, nf, a, b, wo, wi):
     """``f * |cos(theta_i)|`` and pdf of Mitsuba's roughdielectric for any pair of sides."""
     cos_o = wo[2]
@@ -305,7 +305,7 @@ def _rough_dielectric(node, nf, a, b, wo, wi):
     return b[0] * v, b[1] * v, b[2] * v, pdf
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def bsdf_eval(kind, node, nf, ni, tables, a, b, wo, wi):
     """``f * |cos(theta_i)|`` (r, g, b) and the pdf of :func:`bsdf_sample` for ``wi``.
 
@@ -375,7 +375,7 @@ def _cosine(u1, u2):
     return (r * math.cos(phi), r * math.sin(phi), math.sqrt(max(1.0 - u1, 0.0)))
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def bsdf_sample(kind, node, nf, ni, tables, a, b, wo, u1, u2, u3):
     """Sample a direction towards the light.
 

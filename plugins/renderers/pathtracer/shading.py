@@ -89,7 +89,7 @@ def node_scalar(node, u, v, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv):
     return 0.2126 * r + 0.7152 * g + 0.0722 * b
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def resolve(root, front, u_sel, u, v, node_kind, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv):
     """The leaf BSDF chosen at a surface point.
 
@@ -128,7 +128,7 @@ def resolve(root, front, u_sel, u, v, node_kind, nf, ni, tex_data, tex_off, tex_
     return node, two_sided
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def transparent(root, front, u, v, node_kind, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv):
     """True where the material's (first) mask has opacity 0: no sample can stop here."""
     node = root
