@@ -18,7 +18,8 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
     """An ``<emitter>`` that is not attached to a shape as (environment, sun); either may be None."""
     kind = node.get("type")
     if kind == "constant":
-        return Environment(kind="constant", radiance=get_color(node, "radiance", (1.0, 1.0, 1.0))), None
+        radiance = get_color(node, "radiance", (1.0, 1.0, 1.0), illuminant=True)
+        return Environment(kind="constant", radiance=radiance), None
     if kind == "envmap":
         matrix = transform(find(node, "toWorld"))
         scale = get_float(node, "scale", 1.0)

@@ -113,7 +113,7 @@ def _load(path: Path, name: str | None) -> Scene:
             if emitter is not None:
                 if emitter.get("type") != "area":
                     warn(f"shape emitter {emitter.get('type')!r} treated as an area light")
-                emission = get_color(emitter, "radiance", (1.0, 1.0, 1.0))
+                emission = get_color(emitter, "radiance", (1.0, 1.0, 1.0), illuminant=True)
             index = table.add(desc, label, emission)
             objects.append(SceneObject(node.get("id") or f"shape{len(objects)}", to_polydata(mesh, index),
                                        material=index))
