@@ -25,7 +25,19 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .bsdf import F_A, F_B, I_TEX_A, I_TEX_B, bsdf_eval, bsdf_sample, is_delta, is_transmissive
+from .bsdf import (
+    F_A,
+    F_B,
+    I_CHILD0,
+    I_CHILD1,
+    I_TEX_A,
+    I_TEX_B,
+    TWOSIDED,
+    bsdf_eval,
+    bsdf_sample,
+    is_delta,
+    is_transmissive,
+)
 from .lights import infinite_pdf, infinite_radiance, sample_light
 from .materials import HAS_MASK, ONE_SIDED_EMISSION
 from .rng import stream_key, uniform
@@ -115,8 +127,15 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
             break
         base = 8 * bounce
         front = dot(ns, wo) > 0.0
-        leaf, two_sided = resolve(mat_root[m], front, uniform(key, base + 7), tu, tv, node_kind, nf, ni,
-                                  tex_data, tex_off, tex_w, tex_h, tex_uv)
+        root = mat_root[m]
+        if node_kind[root] < TWOSIDED:  # a bare BSDF, or twosided around one: no walk, no random number
+            leaf, two_sided = root, False
+        elif node_kind[root] == TWOSIDED and node_kind[ni[root, I_CHILD0]] < TWOSIDED and (
+                front or ni[root, I_CHILD1] == ni[root, I_CHILD0]):
+            leaf, two_sided = ni[root, I_CHILD0], True
+        else:
+            leaf, two_sided = resolve(root, front, uniform(key, base + 7), tu, tv, node_kind, nf, ni,
+                                      tex_data, tex_off, tex_w, tex_h, tex_uv)
         if leaf < 0:  # through a mask: a null interaction, as a delta lobe of weight 1
             wi = d
             wr = wg = wb = 1.0
