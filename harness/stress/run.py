@@ -23,7 +23,7 @@ import pandas as pd
 
 from harness.backends import cuda_available, resolve_backend
 from harness.cache import atomic_write_bytes, clean_temporaries
-from harness.executors.base import Executor, Outcome
+from harness.executors.base import Executor
 from harness.lock import FolderLock, check_out_dir
 from harness.machine import machine_info, machine_label
 from harness.plan import BACKEND_CHOICES, filter_params
@@ -33,7 +33,7 @@ from harness.stress.check import CaseResult
 from harness.stress.fuzz import fuzz
 from harness.stress.reproducer import load_reproducer, save_reproducer
 from harness.stress.table import StressRow, counts, make_table, verdict
-from harness.stress.tasks import StressTask
+from harness.stress.tasks import StressTask, case_result
 
 RESULTS = "results.parquet"
 REPRODUCERS = "reproducers"
@@ -196,7 +196,7 @@ class _Stress:
             for index, outcome in self.executor.run(tasks):
                 slot, target, case = slots[index]
                 bar.set_description(tasks[index].label)
-                self._add(target, case.name, case.group, _result(outcome, tasks[index].label), slot=slot)
+                self._add(target, case.name, case.group, case_result(outcome, tasks[index].label), slot=slot)
                 bar.update(1)
         finally:
             bar.close()
@@ -206,7 +206,7 @@ class _Stress:
         task = StressTask(target.name, target.backend, target.params, label, frames=frames, resets=tuple(resets),
                           flags=dict(flags or {}))
         (_, outcome), = list(self.executor.run([task]))
-        return _result(outcome, task.label)
+        return case_result(outcome, task.label)
 
     def _fuzz(self, target: Target) -> None:
         if target.skip:
@@ -307,20 +307,6 @@ def _matches_any(pattern: str) -> bool:
     import fnmatch
 
     return pattern in ("fuzz",) or any(fnmatch.fnmatchcase(name, pattern) for name in CASES)
-
-
-def _result(outcome: Outcome, label: str) -> CaseResult:
-    """The case result of an executor outcome; a worker's death or a hang becomes ``crash``/``timeout``."""
-    if outcome.ok:
-        return outcome.value
-    error = outcome.error.removeprefix(f"{label}: ")
-    if "timed out" in error:
-        status = "timeout"
-    elif "the worker process" in error:
-        status = "crash"
-    else:
-        status = "error"
-    return CaseResult(status=status, message=error, frame=outcome.progress, calls=outcome.progress)
 
 
 def read_stress(out_dir: str | Path) -> pd.DataFrame:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from harness.executors.base import Task, WorkerContext
+from harness.executors.base import Outcome, Task, WorkerContext
 from harness.stress.cases import CASES, Sequence
 from harness.stress.check import CaseResult, run_case, run_sequence
 from harness.stress.frames import scene_frame
@@ -70,3 +70,17 @@ def warm_up(spec, backend: str, params: dict) -> None:
             filt(scene_frame(16, 12, channels, seed=t, index=t), sampler=None)
     except (Exception, SystemExit):
         pass
+
+
+def case_result(outcome: Outcome, label: str) -> CaseResult:
+    """The case result of an executor outcome; a worker's death or a hang becomes ``crash``/``timeout``."""
+    if outcome.ok:
+        return outcome.value
+    error = outcome.error.removeprefix(f"{label}: ")
+    if error.startswith("timed out: no progress"):
+        status = "timeout"
+    elif "the worker process" in error:
+        status = "crash"
+    else:
+        status = "error"
+    return CaseResult(status=status, message=error, frame=outcome.progress, calls=outcome.progress)
