@@ -205,6 +205,19 @@ def test_energy_of_a_long_static_sequence_is_bounded_and_does_not_drift():
     assert run(exploding, "sequence-static-1000").status == "unstable"
 
 
+def test_a_call_that_allocates_per_pixel_windows_fails_the_memory_bound():
+    class Hog(Copy):
+        def __call__(self, frame, sampler=None):
+            window = np.ones((frame.height * frame.width, 400), np.float32)  # 1,600 bytes per pixel
+            return (np.array(frame["color"]) + window[:, :3].reshape(frame.shape + (3,)) * 0).astype(np.float32)
+
+    sequence = Sequence.of([scene_frame(256, 256, {"color"})])
+    result = run_sequence(spec_of(Hog), "cpu", {}, sequence, memory_bound=True)
+    assert result.status == "memory" and "more than 1024 bytes per pixel" in result.message
+    assert result.peak_mb >= 100
+    assert run_sequence(spec_of(Copy), "cpu", {}, sequence, memory_bound=True).status == "pass"
+
+
 def test_monitor_range_covers_direct_plus_indirect():
     frame = with_color(scene_frame(4, 4, {"direct", "indirect"}), np.full((4, 4, 3), 2.0, np.float32))
     monitor = Monitor(convex=True)

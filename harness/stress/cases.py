@@ -10,7 +10,10 @@ filter reads) and says which properties of :mod:`harness.stress.properties` hold
 * ``energy`` cases (a long static sequence): the output's mean stays near the clean image's
   and does not drift;
 * ``fresh`` cases: after ``reset()`` the output equals a fresh instance's;
-* ``rejects`` cases (invalid radiance): a ``ValueError`` naming the problem is an answer too.
+* ``rejects`` cases (invalid radiance): a ``ValueError`` naming the problem is an answer too;
+* ``memory`` cases (4K): no call grows the process by more than
+  :data:`harness.stress.check.MEMORY_PER_PIXEL` bytes per pixel; a call's time is bounded by
+  the run's ``--timeout`` (seconds without a finished frame).
 
 Groups: ``colour`` (extreme radiance), ``guide`` (extreme or degenerate values in every guide
 channel), ``shape`` (1x1 to 4K), ``sequence`` (1,000 static frames, camera cuts, resolution
@@ -99,7 +102,7 @@ class StressCase:
         ``build(channels, temporal) -> Sequence`` with exactly ``channels`` (plus ``color``).
     channel : str, optional
         A guide case applies only to filters that read this channel.
-    temporal_only, flat, energy, fresh, rejects, heavy : bool
+    temporal_only, flat, energy, fresh, rejects, memory, heavy : bool
         See the module docstring.
     """
 
@@ -113,6 +116,7 @@ class StressCase:
     energy: bool = False
     fresh: bool = False
     rejects: bool = False
+    memory: bool = False
     heavy: bool = False
 
     def skip_reason(self, spec) -> str | None:
@@ -334,7 +338,8 @@ def _battery() -> list[StressCase]:
         StressCase("shape-33x1", "shape", "one column of 33 pixels", _shape(33, 1)),
         StressCase("shape-7x5", "shape", "7 rows of 5 pixels (odd sizes)", _shape(7, 5)),
         StressCase("shape-13x11", "shape", "13 rows of 11 pixels (odd sizes)", _shape(13, 11)),
-        StressCase("shape-4k", "shape", "3840x2160 (4K UHD): memory and time", _shape(*UHD, frames=2), heavy=True),
+        StressCase("shape-4k", "shape", "3840x2160 (4K UHD): memory and time", _shape(*UHD, frames=2), memory=True,
+                   heavy=True),
     ]
     cases += [
         StressCase("sequence-static-1000", "sequence", f"{STATIC_FRAMES} frames of a static noisy scene "

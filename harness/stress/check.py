@@ -19,6 +19,10 @@ from harness.errors import short_error
 from harness.stress.cases import Sequence, StressCase
 from harness.stress.properties import Failure, Monitor
 
+#: bytes per pixel one call may add to the process (large frames): 1 KiB, 8 GiB at 4K. It
+#: catches allocations that grow with a window per pixel, not a careful budget.
+MEMORY_PER_PIXEL = 1024
+
 
 @dataclass
 class CaseResult:
@@ -37,7 +41,8 @@ class CaseResult:
     ms_median, ms_max : float
         Per-call wall time of the filter, milliseconds.
     peak_mb : float
-        Growth of the process's peak resident memory during the case, MiB (NaN where unknown).
+        The largest growth of the process's resident memory during one filter call, MiB (NaN
+        where unknown).
     height, width : int
         Size of the first frame.
     notes : str
@@ -63,12 +68,13 @@ def run_case(spec, backend: str, params: dict, case: StressCase, progress: Calla
              ) -> CaseResult:
     """Run the filter ``spec`` (built with ``backend`` and ``params``) over ``case``."""
     return run_sequence(spec, backend, params, case.sequence(spec), flat=case.flat, energy=case.energy,
-                        fresh=case.fresh, rejects=case.rejects, progress=progress)
+                        fresh=case.fresh, rejects=case.rejects, memory_bound=case.memory,
+                        progress=progress)
 
 
 def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: bool = False, energy: bool = False,
-                 fresh: bool = False, rejects: bool = False, progress: Callable[[int], None] | None = None
-                 ) -> CaseResult:
+                 fresh: bool = False, rejects: bool = False, memory_bound: bool = False,
+                 progress: Callable[[int], None] | None = None) -> CaseResult:
     """Run a filter over ``sequence``, checking the properties after every call.
 
     Parameters
@@ -80,6 +86,8 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
     sequence : Sequence
     flat, energy, fresh, rejects : bool
         The case's properties (:class:`harness.stress.cases.StressCase`).
+    memory_bound : bool
+        Fail a call that grows the process by more than ``MEMORY_PER_PIXEL`` bytes per pixel.
     progress : callable, optional
         Called with 1 after each frame (a worker reports it, so a long case is not a hang).
 
@@ -106,6 +114,7 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
         if t in sequence.resets:
             filt.reset()
             monitor.restart()
+        memory.before_call()
         start = time.perf_counter_ns()
         try:
             out = filt(frame, sampler=None)
@@ -119,6 +128,7 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
                 return _finish(result, times, memory)
             return _failed(result, Failure("error", f"frame {t}: {_why(exc)}", t), times, memory)
         times.append((time.perf_counter_ns() - start) / 1e6)
+        grown = memory.after_call()
         result.calls += 1
         try:
             check_filter_output(out, frame, owner=f"filter {spec.name!r}")
@@ -127,6 +137,9 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
         except Exception as exc:
             return _failed(result, Failure("error", f"frame {t}: {short_error(exc)}", t), times, memory)
         failure = monitor.check(t, frame, np.asarray(out))
+        if failure is None and memory_bound and grown * 2**20 > MEMORY_PER_PIXEL * frame.height * frame.width:
+            failure = Failure("memory", f"the call grew the process by {grown:.0f} MiB, more than "
+                                        f"{MEMORY_PER_PIXEL} bytes per pixel", t)
         if failure is None and fresh and t in sequence.resets:
             failure = _compare_fresh(spec, backend, params, frame, out, t)
         if failure is not None:
@@ -170,16 +183,18 @@ def _why(exc: BaseException) -> str:
 
 
 class _PeakMemory:
-    """Growth of the peak resident set size from now on (Linux: ``/proc/self``; NaN elsewhere)."""
+    """The largest growth of the resident set size during a filter call (Linux: ``/proc/self``; NaN elsewhere).
+
+    Building the case's frames is outside the calls, so it does not count.
+    """
 
     STATUS = Path("/proc/self/status")
+    CLEAR = Path("/proc/self/clear_refs")
 
     def __init__(self):
-        self.start = self._read("VmRSS")
-        try:  # writing 5 resets the peak (VmHWM) to the current size
-            Path("/proc/self/clear_refs").write_text("5")
-        except OSError:
-            self.start = math.nan
+        self.peak = 0.0
+        self.known = self.CLEAR.exists()
+        self.start = math.nan
 
     def _read(self, key: str) -> float:
         try:
@@ -190,5 +205,22 @@ class _PeakMemory:
             pass
         return math.nan
 
+    def before_call(self) -> None:
+        if not self.known:
+            return
+        try:  # writing 5 resets the peak (VmHWM) to the current size
+            self.CLEAR.write_text("5")
+        except OSError:
+            self.known = False
+        self.start = self._read("VmRSS")
+
+    def after_call(self) -> float:
+        """Growth during the call just made, MiB (and keep the largest)."""
+        if not self.known:
+            return math.nan
+        growth = max(self._read("VmHWM") - self.start, 0.0)
+        self.peak = max(self.peak, growth)
+        return growth
+
     def growth_mb(self) -> float:
-        return max(self._read("VmHWM") - self.start, 0.0) if math.isfinite(self.start) else math.nan
+        return self.peak if self.known else math.nan

@@ -39,8 +39,8 @@ TINY = float(np.finfo(np.float32).tiny)
 #: the outcome of a case: statuses that count as passing
 PASSING = ("pass", "rejected")
 #: every status, in the order tables list them
-STATUSES = ("pass", "rejected", "nonfinite", "out_of_bounds", "mean_shift", "unstable", "reset_differs", "error",
-            "crash", "timeout", "exempt", "skipped")
+STATUSES = ("pass", "rejected", "nonfinite", "out_of_bounds", "mean_shift", "unstable", "reset_differs", "memory",
+            "error", "crash", "timeout", "skipped")
 
 
 @dataclass

@@ -11,8 +11,8 @@ Columns (in order):
                   ``fuzz``, ``replay``)
 ``status``        what happened (:data:`harness.stress.properties.STATUSES`): ``pass``,
                   ``rejected`` (a clear ``ValueError`` on invalid input), ``nonfinite``,
-                  ``out_of_bounds``, ``mean_shift``, ``unstable``, ``reset_differs``, ``error``,
-                  ``crash``, ``timeout``, ``skipped``
+                  ``out_of_bounds``, ``mean_shift``, ``unstable``, ``reset_differs``, ``memory``,
+                  ``error``, ``crash``, ``timeout``, ``skipped``
 ``verdict``       what it means: ``pass``, ``fail``, ``declared`` (a failure the filter declares
                   in ``stress_exempt``), ``stale`` (declared, but passes), ``n/a`` (skipped)
 ``message``       what failed, one line (or why the case does not apply)
@@ -23,7 +23,7 @@ Columns (in order):
 ``height``, ``width``  size of the first frame
 ``ms_median``, ``ms_max``  per-call filter time, milliseconds (compilation excluded: the worker
                   warms each filter up first)
-``peak_mb``       growth of the worker's peak resident memory during the case, MiB
+``peak_mb``       the largest growth of the worker's resident memory during one filter call, MiB
 ``reproducer``    the saved ``.npz`` of a fuzzing failure ("" if none)
 ``machine``, ``threads``  where it ran
 ================  ==================================================================
@@ -94,8 +94,8 @@ def make_table(rows) -> pd.DataFrame:
 #: how each status reads in the matrix
 LABELS = {
     "pass": "ok", "rejected": "rejects", "nonfinite": "NaN/Inf", "out_of_bounds": "bounds", "mean_shift": "mean",
-    "unstable": "energy", "reset_differs": "reset", "error": "error", "crash": "CRASH", "timeout": "timeout",
-    "skipped": "-",
+    "unstable": "energy", "reset_differs": "reset", "memory": "memory", "error": "error", "crash": "CRASH",
+    "timeout": "timeout", "skipped": "-",
 }
 
 
