@@ -214,7 +214,7 @@ def test_a_call_that_allocates_per_pixel_windows_fails_the_memory_bound():
     sequence = Sequence.of([scene_frame(256, 256, {"color"})])
     result = run_sequence(spec_of(Hog), "cpu", {}, sequence, memory_bound=True)
     assert result.status == "memory" and "more than 1024 bytes per pixel" in result.message
-    assert result.peak_mb >= 100
+    assert result.peak_mb >= 90  # 100 MiB allocated; the measure is the resident set, in pages
     assert run_sequence(spec_of(Copy), "cpu", {}, sequence, memory_bound=True).status == "pass"
 
 
