@@ -139,10 +139,9 @@ def cmd_stress(registry, args) -> int:
     filters, backends, params = args.filters, args.backend, _grouped(args.param)
     if args.replay is not None:
         info = load_reproducer(args.replay)[1]
-        if filters is None:
+        if filters is None:  # the filter, backend and parameters it was found with; --param still overrides
             filters, backends = [info["filter"]], [info["backend"]]
-            params = {info["filter"]: {**info.get("params", {}), **params.get(info["filter"], {})}, **{
-                k: v for k, v in params.items() if k != info["filter"]}}
+            params[info["filter"]] = {**info.get("params", {}), **params.get(info["filter"], {})}
     battery = args.cases is not None or (args.fuzz is None and args.replay is None)
     cases = select_cases(args.cases) if battery else []
     if args.fuzz is not None:
@@ -163,6 +162,9 @@ def cmd_stress(registry, args) -> int:
         outcome = run_stress(registry, executor, args.out, targets, cases=cases, fuzz_examples=args.fuzz or 0,
                              seed=args.seed, replay=args.replay, settings=settings, progress=_progress(args))
     _print_stress(outcome.table, args.markdown)
+    for name, patterns in sorted(outcome.manifest.get("unknown_exemptions", {}).items()):
+        print(f"denoise-bench stress: warning: filter {name!r} declares stress_exempt for {patterns}, which "
+              f"match no case", file=sys.stderr)
     for path in outcome.reproducers:
         print(f"reproducer: {path}; replay with: denoise-bench stress --replay {path}")
     return 1 if (outcome.table.verdict == "fail").any() else 0

@@ -311,10 +311,11 @@ def _battery() -> list[StressCase]:
         StressCase("color-negative", "colour", "10% of pixels at -0.5 (invalid radiance: a clear error or a "
                    "documented clamp)", _colour(_negative), rejects=True),
     ]
-    values = {"nan": np.nan, "inf": np.inf, "neginf": -np.inf, "max": F32_MAX}
+    values = {"nan": (np.nan, "NaN"), "inf": (np.inf, "+Inf"), "neginf": (-np.inf, "-Inf"),
+              "max": (F32_MAX, "3.4e38 (float32 max)")}
     for channel in ("albedo", "normal", "position", "depth", "variance", "visibility", "motion"):
-        for label, value in values.items():
-            cases.append(StressCase(f"guide-{channel}-{label}", "guide", f"5% of pixels with {channel} = {value}",
+        for label, (value, text) in values.items():
+            cases.append(StressCase(f"guide-{channel}-{label}", "guide", f"5% of pixels with {channel} {text}",
                                     _guide(channel, value), channel=channel))
     cases += [
         StressCase("guide-normal-zero", "guide", "5% of pixels with zero-length normals", _guide("normal", 0.0),
