@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +31,7 @@ class CaseResult:
     Attributes
     ----------
     status : str
-        One of :data:`harness.stress.properties.STATUSES`.
+        ``pass``, ``rejected`` or what failed (the statuses of :mod:`harness.stress.table`).
     message : str
         What failed (or why the input was rejected), one line.
     frame : int
@@ -59,9 +59,6 @@ class CaseResult:
     height: int = -1
     width: int = -1
     notes: str = ""
-
-    def as_dict(self) -> dict:
-        return asdict(self)
 
 
 def run_case(spec, backend: str, params: dict, case: StressCase, progress: Callable[[int], None] | None = None

@@ -9,7 +9,7 @@ Columns (in order):
 ``case``          battery case, ``fuzz`` (a fuzzing search) or ``replay:<file>``
 ``group``         the case's group (``colour``, ``guide``, ``shape``, ``sequence``, ``policy``,
                   ``fuzz``, ``replay``)
-``status``        what happened (:data:`harness.stress.properties.STATUSES`): ``pass``,
+``status``        what happened: ``pass``,
                   ``rejected`` (a clear ``ValueError`` on invalid input), ``nonfinite``,
                   ``out_of_bounds``, ``mean_shift``, ``unstable``, ``reset_differs``, ``memory``,
                   ``error``, ``crash``, ``timeout``, ``skipped``
