@@ -171,9 +171,12 @@ def cmd_stress(registry, args) -> int:
 
 
 def _print_stress(df: pd.DataFrame, markdown=None) -> None:
-    from harness.stress.table import counts, failures, matrix
+    from harness.stress.table import counts, failures, matrix, per_filter
 
+    print("Cells: the outcome and, where it passes, the median milliseconds per filter call.")
     print(format_table(matrix(df)))
+    print()
+    print(format_table(per_filter(df)))
     bad = failures(df)
     if not bad.empty:
         print("\nFailures and declared exemptions:")
@@ -185,7 +188,7 @@ def _print_stress(df: pd.DataFrame, markdown=None) -> None:
             print(line)
     print("\n" + ", ".join(f"{n} {k}" for k, n in sorted(counts(df).items())))
     if markdown is not None:
-        markdown.write_text(to_markdown(matrix(df)))
+        markdown.write_text(to_markdown(per_filter(df)) + "\n" + to_markdown(matrix(df)))
         print(f"markdown written to {markdown}")
 
 

@@ -131,6 +131,14 @@ def failures(df: pd.DataFrame) -> pd.DataFrame:
     return bad[["filter", "backend", "case", "verdict", "status", "frame", "message", "exempt", "reproducer"]]
 
 
+def per_filter(df: pd.DataFrame) -> pd.DataFrame:
+    """Cases of each verdict per ``filter/backend`` (columns in the order pass, declared, stale, fail, n/a)."""
+    table = pd.crosstab(df["filter"] + "/" + df["backend"], df["verdict"])
+    table = table.reindex(columns=[v for v in ("pass", "declared", "stale", "fail", "n/a") if v in table.columns])
+    table.index.name, table.columns.name = "filter", None
+    return table.reset_index()
+
+
 def counts(df: pd.DataFrame) -> dict:
     """How many rows have each verdict."""
     return {k: int(v) for k, v in df.verdict.value_counts().items()}
