@@ -20,6 +20,15 @@ PENDING = {
     "filter:svgf[cpu]-stress:guide-albedo-nan": f"{_NAN}: a NaN albedo spreads NaN over the image",
     "filter:svgf[cpu]-stress:guide-albedo-inf": "remodulation by an infinite albedo: output 1e37 from colour <= 4",
     "filter:svgf[cpu]-stress:guide-albedo-max": "remodulation by a 3.4e38 albedo: output 1e37 from colour <= 4",
+    # the cuda backends, measured under NUMBA_ENABLE_CUDASIM=1 (lbf's not measured yet)
+    "filter:eaw[cuda]-stress:color-float-max": f"{_NAN}: one 3.4e38 pixel makes every pixel NaN",
+    "filter:eaw[cuda]-stress:guide-normal-nan": f"{_NAN}: a NaN normal spreads NaN over the image",
+    "filter:eaw[cuda]-stress:guide-position-nan": f"{_NAN}: a NaN position spreads NaN over the image",
+    "filter:svgf[cuda]-stress:guide-albedo-nan": f"{_NAN}: a NaN albedo spreads NaN over the image",
+    "filter:svgf[cuda]-stress:guide-albedo-inf": "remodulation by an infinite albedo: output 1e37 from colour <= 4",
+    "filter:svgf[cuda]-stress:guide-albedo-max": "remodulation by a 3.4e38 albedo: output 1e37 from colour <= 4",
+    "filter:svgf[cuda]-stress:guide-motion-nan": "a NaN motion vector is converted to an integer pixel index "
+                                                "(reproject.py; the simulator raises, a GPU reads anywhere)",
 }
 
 
