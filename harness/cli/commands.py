@@ -10,6 +10,7 @@ import pandas as pd
 
 from harness.bench import DEFAULT_PEERS, bench_filters
 from harness.cache import Cache
+from harness.cli.stress import cmd_stress, show_stress  # noqa: F401 (cmd_stress: the `stress` sub-command)
 from harness.executors import make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
@@ -105,6 +106,8 @@ def _print_summary(df: pd.DataFrame, registry) -> None:
 
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
+    if (read_manifest(args.dir) or {}).get("kind") == "stress":
+        return show_stress(args)
     df = read_results(args.dir)
     if args.all:
         print(format_table(df))
