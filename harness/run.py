@@ -121,6 +121,7 @@ class _Run:
         self.concurrent = bool(getattr(executor, "concurrent", False))
         self.renders: RemoteRenders | None = None
         self._lock = threading.RLock()
+        self._stopped = threading.Event()  # the run was interrupted: group threads store nothing more
 
     def execute(self) -> RunOutcome:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
@@ -161,6 +162,8 @@ class _Run:
 
     def _store(self, job_id: str, table: pd.DataFrame, final: bool = True) -> None:
         with self._lock:
+            if self._stopped.is_set():
+                return
             write_table(table, self.jobs_dir / f"{job_id}.parquet")
             self.tables[job_id] = table
             if final:
@@ -177,6 +180,7 @@ class _Run:
             for future in [pool.submit(self._run_group, g, stored, bar) for g in groups]:
                 future.result()
         finally:
+            self._stopped.set()
             pool.shutdown(wait=False, cancel_futures=True)
             self.renders.close()
 
@@ -208,6 +212,8 @@ class _Run:
         keep = "first" if self.pictures else "none"
         tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
         for index, outcome in self.executor.run(tasks, progress=bar.update):
+            if self._stopped.is_set():
+                return
             job = pending[index]
             bar.set_description(tasks[min(index + 1, len(tasks) - 1)].label)
             if outcome.ok:

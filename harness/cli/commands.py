@@ -16,7 +16,7 @@ from harness.lock import FolderLock, check_out_dir
 from harness.manifest import read_manifest
 from harness.plan import choose_renderer, make_plan
 from harness.renders import RenderStore, scene_selection
-from harness.results import format_table, leaderboard, read_results, summary, to_markdown
+from harness.results import format_table, leaderboard, read_results, summary, timing_setups, to_markdown
 from harness.run import run_plan
 from harness.specs import TASKS
 
@@ -105,6 +105,10 @@ def _print_summary(df: pd.DataFrame, registry) -> None:
         for task, part in board.groupby("task", sort=True):
             print(f"\nLeaderboard, task {task} (mean rank over scenes and metrics, best first):")
             print(format_table(part.drop(columns="task")))
+        setups = timing_setups(df)
+        if len(setups) > 1:
+            print(f"\nNote: rows were timed on {len(setups)} machine setups ({'; '.join(setups)}); compare ms_median "
+                  "only between entries of the same setup (column timed_on)")
     skipped = df[df.status == "skipped"]
     if not skipped.empty:
         print("\nSkipped:")
