@@ -52,7 +52,7 @@ class RemoteRenders:
         self.store, self.executor, self.chunk = store, executor, chunk
         self._pool = ThreadPoolExecutor(WAITING_THREADS, thread_name_prefix="harness-render")
         self._in_flight: dict[str, Future] = {}
-        self._lock = threading.Lock()
+        self._lock = threading.RLock()  # a future done at once calls _forget in _once
         self._here = threading.Lock()
 
     def __enter__(self) -> RemoteRenders:
