@@ -162,7 +162,8 @@ def main() -> None:
             print(f"chunk size for overhead under 5% at {name}: {max(chunk, 1):.2f} samples per task "
                   f"(o = {overhead * 1e3:.1f} ms, r = {per_worker / 1e6:.3f} M paths/s per {cores}-core worker)")
         big_paths = big_pixels * args.project_spp
-        print(f"\nprojected wall time of a {pw}x{ph} x {args.project_spp}-spp reference ({big_paths / 1e9:.2f} G paths) "
+        print(f"\nprojected wall time of a {pw}x{ph} x {args.project_spp}-spp reference "
+              f"({big_paths / 1e9:.2f} G paths) "
               f"at {per_core / 1e6:.3f} M paths/s per core, efficiency {efficiency:.2f}, "
               f"one task per core of {args.project_spp} / cores spp:")
         for n in (cores, 16, 64, 256):
