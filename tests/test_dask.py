@@ -5,6 +5,7 @@ the local executor's, a worker killed while it holds tasks is replaced and the r
 with the same table, and a task that kills every worker it runs on becomes a named error row.
 """
 
+import importlib.util
 import json
 import os
 import signal
@@ -30,7 +31,8 @@ from tests import dask_plugins
 from tests.conftest import bench_env
 from tests.test_run import bench
 
-pytest.importorskip("distributed", reason='the dask executor needs the optional extra: pip install -e ".[dask]"')
+needs_dask = pytest.mark.skipif(importlib.util.find_spec("distributed") is None,
+                                reason='the dask executor needs the optional extra: pip install -e ".[dask]"')
 
 PLUGINS = PluginOptions(modules=["tests.dask_plugins"])
 SCENES = ["synthetic-edges", "synthetic-moving"]
@@ -63,12 +65,14 @@ def run(registry, executor, tmp_path, filters, scenes=SCENES, name="o", **option
     return run_plan(registry, plan, store, executor, tmp_path / name, progress=False).table
 
 
+@needs_dask
 def test_the_cluster_has_two_worker_processes(cluster):
     pids = cluster.client.run(os.getpid)
     assert len(pids) == 2 and len(set(pids.values())) == 2 and os.getpid() not in pids.values()
     assert cluster.describe()["workers"] == 2 and cluster.allowed_failures == 1
 
 
+@needs_dask
 @pytest.mark.parametrize(("scene", "renderer", "frames", "spp", "chunk"),
                          [("synthetic-moving", "synthetic", 3, 23, 5), ("cornell", "pathtracer", 1, 10, 3)])
 def test_a_chunked_reference_is_bit_identical_to_the_local_one(registry, cluster, tmp_path, scene, renderer, frames,
@@ -86,6 +90,7 @@ def test_a_chunked_reference_is_bit_identical_to_the_local_one(registry, cluster
     assert store.cache.misses["references"] == frames and not list((tmp_path / "c" / "partial").rglob("*.npz"))
 
 
+@needs_dask
 def test_a_reference_resumes_from_its_stored_chunks(registry, cluster, tmp_path):
     """A checkpoint left by an interrupted render is used: only the remaining chunks are tasks."""
     store = RenderStore(registry, Cache(tmp_path / "c"), resolution=(24, 16))
@@ -100,6 +105,7 @@ def test_a_reference_resumes_from_its_stored_chunks(registry, cluster, tmp_path)
     assert np.array_equal(ref, RenderStore(registry, resolution=(24, 16)).reference(scene, "synthetic", 0, spp=20))
 
 
+@needs_dask
 def test_frames_rendered_on_workers_equal_local_ones(registry, cluster, tmp_path):
     store = RenderStore(registry, Cache(tmp_path / "c"), resolution=(24, 16))
     channels = {"albedo", "normal", "motion", "spp"}
@@ -112,6 +118,7 @@ def test_frames_rendered_on_workers_equal_local_ones(registry, cluster, tmp_path
         assert np.array_equal(frame[name], local[name]), name
 
 
+@needs_dask
 def test_a_run_has_the_metric_columns_of_the_local_run(registry, cluster, tmp_path):
     filters = ["passthrough", "gaussian", "median3", "slow"]
     on_cluster = run(registry, cluster, tmp_path, filters, name="dask")
@@ -124,6 +131,7 @@ def test_a_run_has_the_metric_columns_of_the_local_run(registry, cluster, tmp_pa
     assert stored == sorted(on_cluster.job_id.unique())
 
 
+@needs_dask
 def test_a_worker_killed_while_it_holds_tasks_is_replaced_and_the_run_completes(registry, cluster, tmp_path):
     filters = ["slow", "passthrough", "gaussian"]
     expected = run(registry, make_executor("inline", registry=registry), tmp_path, filters, name="inline", seeds=[0, 1])
@@ -154,6 +162,7 @@ def test_a_worker_killed_while_it_holds_tasks_is_replaced_and_the_run_completes(
     assert killed[0] not in client.run(os.getpid).values()
 
 
+@needs_dask
 def test_a_task_that_kills_its_workers_becomes_a_named_error_row(registry, cluster, tmp_path):
     table = run(registry, cluster, tmp_path, ["exits", "gaussian"], scenes=["synthetic-edges"], name="exits")
     bad = table[table["filter"] == "exits"]
@@ -164,6 +173,7 @@ def test_a_task_that_kills_its_workers_becomes_a_named_error_row(registry, clust
     cluster.client.wait_for_workers(2, timeout=60)
 
 
+@needs_dask
 def test_cli_render_then_run_on_a_local_cluster(tmp_path):
     cache = tmp_path / "cache"
     render = bench(["render", "--scenes", "synthetic-static", "--frames", "2", "--spp", "9", "--chunk", "4",
@@ -179,6 +189,7 @@ def test_cli_render_then_run_on_a_local_cluster(tmp_path):
     assert json.loads((tmp_path / "o" / "manifest.json").read_text())["executor"]["executor"] == "dask"
 
 
+@needs_dask
 def test_an_interrupted_cluster_run_resumes_like_a_local_one(tmp_path):
     def args(executor, out):
         extra = ["--executor", "dask", "--workers", "2"] if executor == "dask" else []
@@ -212,3 +223,57 @@ def test_without_distributed_the_cli_says_how_to_install_it():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=bench_env())
     assert out.returncode == 2
     assert 'pip install -e ".[dask]"' in out.stderr, out.stderr
+
+
+@needs_dask
+def test_a_timed_task_waits_for_renders_and_new_renders_wait_for_it(tmp_path):
+    """The host slot: shared for renders, exclusive for timing, and no starving of the timed task."""
+    from harness.executors.dask import host_slot
+
+    events, release = [], threading.Event()
+
+    def render(name, hold=None):
+        with host_slot(False, tmp_path):
+            events.append(f"{name} in")
+            if hold is not None:
+                hold.wait(10)
+            events.append(f"{name} out")
+
+    def timed():
+        with host_slot(True, tmp_path):
+            events.append("timed in")
+            time.sleep(0.3)
+            events.append("timed out")
+
+    first = threading.Thread(target=render, args=("first", release))
+    first.start()
+    while "first in" not in events:
+        time.sleep(0.01)
+    waiting = threading.Thread(target=timed)
+    waiting.start()
+    time.sleep(0.3)
+    late = threading.Thread(target=render, args=("late",))
+    late.start()
+    time.sleep(0.3)
+    assert events == ["first in"]  # the timed task waits for the render; the late render waits behind it
+    release.set()
+    for t in (first, waiting, late):
+        t.join(10)
+    assert events == ["first in", "first out", "timed in", "timed out", "late in", "late out"]
+
+
+def test_the_leaderboard_names_the_machines_when_rows_were_timed_on_several():
+    from harness.results import leaderboard, timing_setups
+    from harness.rows import Row, make_table
+
+    def row(f, scene, machine, threads, rmse):
+        return Row(job_id=f + scene, task="denoise", scene=scene, filter=f, backend="cpu", status="ok", frame=0,
+                   ms_median=1.0, machine=machine, threads=threads, metrics={"rmse": rmse})
+
+    one = make_table([row("a", "x", "CPU A", 2, 1.0), row("b", "x", "CPU A", 2, 2.0)])
+    assert timing_setups(one) == ["CPU A (2 threads)"] and "timed_on" not in leaderboard(one, {})
+    mixed = make_table([row("a", "x", "CPU A", 2, 1.0), row("b", "x", "CPU A", 2, 2.0), row("a", "y", "CPU B", 8, 1.0)])
+    board = leaderboard(mixed, {}).set_index("entry")
+    assert timing_setups(mixed) == ["CPU A (2 threads)", "CPU B (8 threads)"]
+    assert board.loc["a/cpu", "timed_on"] == "CPU A (2 threads); CPU B (8 threads)"
+    assert board.loc["b/cpu", "timed_on"] == "CPU A (2 threads)"

@@ -95,19 +95,20 @@ def _worker_context(plugins: PluginOptions) -> WorkerContext:
 
 
 @contextlib.contextmanager
-def host_slot(exclusive: bool):
+def host_slot(exclusive: bool, folder: str | Path | None = None):
     """Hold this machine's harness slot: shared (rendering) or exclusive (timing).
 
-    Two ``flock`` files in the temporary folder: a turnstile that a waiting exclusive holder
-    keeps closed so that new shared holders queue behind it, and the lock itself. The kernel
-    releases both when the process dies. Where ``fcntl`` is missing (Windows) this does nothing.
+    Two ``flock`` files in ``folder`` (default: the temporary folder): a turnstile that a waiting
+    exclusive holder keeps closed so that new shared holders queue behind it, and the lock
+    itself. The kernel releases both when the process dies. Where ``fcntl`` is missing
+    (Windows) this does nothing.
     """
     try:
         import fcntl
     except ImportError:  # pragma: no cover - Windows
         yield
         return
-    base = Path(tempfile.gettempdir())
+    base = Path(folder) if folder is not None else Path(tempfile.gettempdir())
     user = os.getuid() if hasattr(os, "getuid") else 0
     with open(base / f"denoise-harness-{user}.turnstile", "a+b") as gate, open(
         base / f"denoise-harness-{user}.lock", "a+b"
