@@ -294,6 +294,7 @@ class DaskExecutor(Executor):
                 future = self.client.submit(
                     execute, task.without_shared(), value, self.options, key=f"{type(task).__name__}-{_token()}",
                     pure=False, retries=0, resources=resources if task.timed else None,
+                    priority=1 if task.timed else 0,  # a job whose inputs are in goes before more renders
                 )
                 submitted[future.key] = (index, task, future)
             for future in distributed.as_completed([f for _, _, f in submitted.values()]):
