@@ -39,6 +39,8 @@ CONFIGS = [
     ("fxaa", "fxaa", {}),
     ("taa", "taa", {}),
     ("taa, no clipping", "taa", {"clipping": "none"}),
+    ("taa, min/max box", "taa", {"clipping": "minmax"}),
+    ("taa, no reconstruction", "taa", {"reconstruct": False}),
     ("aa_rnn L2", "aa_rnn", {"layers": 2}),
     ("aa_rnn L4", "aa_rnn", {"layers": 4}),
     ("aa_rnn L6", "aa_rnn", {"layers": 6}),
@@ -49,16 +51,12 @@ TRAIL_FRAMES = 4
 def _configs(registry, only=None):
     configs = [c for c in CONFIGS if c[1] in registry.filters]
     if only:
-        configs = [c for c in configs if c[0] in only or c[1] in only]
+        configs = [c for c in configs if c[0] in only]
     return configs
 
 
-def _channels(registry, configs) -> set:
-    names = set()
-    for _, name, _ in configs:
-        spec = registry.get("filter", name)
-        names |= set(spec.requires) | set(spec.optional)
-    return (names | {"object_id"}) - {"color"}
+#: the G-buffer rendered (and cached) with every input: what the AA filters may read
+GBUFFER = {"albedo", "normal", "depth", "object_id", "motion"}
 
 
 def render_scene(registry, name: str, channels: set, spp: int, resolution=None):
@@ -122,7 +120,7 @@ def quality(args) -> dict:
     results = {}
     for name in scenes:
         t0 = time.perf_counter()
-        scene, frames, refs = render_scene(registry, name, _channels(registry, configs), args.reference_spp)
+        scene, frames, refs = render_scene(registry, name, GBUFFER, args.reference_spp)
         masks = trail_masks(scene, frames)
         print(f"{name}: {len(frames)} frames {frames[0].width}x{frames[0].height}, rendered/read in "
               f"{time.perf_counter() - t0:.0f} s", flush=True)
@@ -171,7 +169,7 @@ def timing(args) -> dict:
         w, h = (int(v) for v in res.split("x"))
         scene = registry.get("scene", args.scene).factory()
         raster = registry.get("renderer", "raster").factory(jitter=True)
-        frames = [raster.render(scene, t, channels=_channels(registry, configs), resolution=(w, h))
+        frames = [raster.render(scene, t, channels=GBUFFER, resolution=(w, h))
                   for t in range(args.frames)]
         filters = {label: registry.get("filter", fname).factory(backend="cpu", **params)
                    for label, fname, params in configs}
@@ -207,7 +205,7 @@ def pictures(args) -> dict:
     """Aliased, TAA, network and SSAA side by side, with 4x zooms of an edge and a texture crop."""
     registry = load_plugins()
     configs = [c for c in _configs(registry) if c[0] in ("noaa", "taa", args.network)]
-    scene, frames, refs = render_scene(registry, args.scene, _channels(registry, configs), args.reference_spp)
+    scene, frames, refs = render_scene(registry, args.scene, GBUFFER, args.reference_spp)
     t = args.frame
     panels = [run_filter(registry, fname, params, frames[:t + 1])[t] for _, fname, params in configs] + [refs[t]]
     rows = [np.concatenate(panels, axis=1)]
@@ -240,7 +238,7 @@ def main(argv=None) -> None:
     sub = parser.add_subparsers(dest="command", required=True)
     q = sub.add_parser("quality")
     q.add_argument("--reference-spp", type=int, default=64)
-    q.add_argument("--filters", type=lambda s: s.split(","), default=None)
+    q.add_argument("--filters", type=lambda s: s.split(","), default=None, help="labels of CONFIGS to run")
     q.add_argument("--out", default=None)
     t = sub.add_parser("timing")
     t.add_argument("--resolutions", default="1280x720,1920x1080")
