@@ -44,9 +44,6 @@ CHANNELS: Mapping[str, tuple[int, type, str]] = {
 #: the key of a frame's metadata in :meth:`Frame.to_arrays`
 META_KEY = "__meta__"
 
-# channels that may legitimately hold inf (background depth)
-_INF_ALLOWED = frozenset({"depth"})
-
 
 class ChannelError(ValueError):
     """A channel has the wrong name, shape or dtype, or holds non-finite values."""
@@ -245,62 +242,6 @@ class Frame:
 
     def __repr__(self) -> str:
         return f"Frame({self.height}x{self.width}, channels={sorted(self._channels)}, index={self.meta.index})"
-
-
-def nonfinite_count(frame: Frame) -> int:
-    """Number of non-finite values in a frame's float channels (``inf`` depth excluded)."""
-    total = 0
-    for name in frame.channels:
-        array = frame[name]
-        if array.dtype.kind != "f":
-            continue
-        bad = ~np.isfinite(array)
-        if name in _INF_ALLOWED:
-            bad &= ~np.isposinf(array)
-        total += int(np.count_nonzero(bad))
-    return total
-
-
-def apply_nonfinite_policy(frame: Frame, policy: str, *, owner: str = "renderer") -> tuple[Frame, int]:
-    """Detect non-finite values at the harness boundary.
-
-    Parameters
-    ----------
-    frame : Frame
-    policy : {"raise", "repair"}
-        ``raise`` raises :class:`NonFiniteError`; ``repair`` replaces NaN by 0 and +-Inf by the
-        channel's largest finite float32 magnitude (depth keeps ``+inf``).
-    owner : str
-        Plugin named in the error.
-
-    Returns
-    -------
-    frame : Frame
-        The input, or a repaired copy.
-    count : int
-        Number of values found (and repaired).
-    """
-    if policy not in ("raise", "repair"):
-        raise ValueError(f"non-finite policy must be 'raise' or 'repair', got {policy!r}")
-    count = nonfinite_count(frame)
-    if count == 0:
-        return frame, 0
-    if policy == "raise":
-        raise NonFiniteError(
-            f"{owner}: frame {frame.meta.index} of {frame.meta.scene!r} holds {count} non-finite values"
-        )
-    fixed = {}
-    big = np.finfo(np.float32).max
-    for name in frame.channels:
-        array = frame[name]
-        if array.dtype.kind != "f":
-            continue
-        if name in _INF_ALLOWED:
-            repaired = np.where(np.isnan(array) | np.isneginf(array), np.float32(np.inf), array)
-        else:
-            repaired = np.nan_to_num(array, nan=0.0, posinf=big, neginf=-big)
-        fixed[name] = repaired.astype(np.float32)
-    return frame.replace(**fixed), count
 
 
 def check_filter_output(out: Any, frame: Frame, *, owner: str) -> np.ndarray:

@@ -3,7 +3,10 @@
 Keys are SHA-256 digests of everything that determines the stored arrays (scene content hash,
 renderer name, version and settings, frame, spp, seed, channels, resolution), so a changed
 input misses instead of returning stale data. Every write goes to a temporary file in the same
-folder and is renamed into place, so an interrupted run never leaves a half-written entry.
+folder and is renamed into place, so an interrupted run never leaves a half-written entry; an
+entry that cannot be read anyway (a truncated or altered file) is a miss: it is named in a
+warning, removed and rendered again. Temporary files left by killed processes are removed by
+:func:`clean_temporaries`. Files are written readable by others (mode 0644 under the usual umask).
 """
 
 from __future__ import annotations
@@ -13,12 +16,31 @@ import io
 import json
 import os
 import tempfile
+import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 DEFAULT_DIR = Path("datasets") / "cache"
 CACHE_ENV = "DENOISE_HARNESS_CACHE"
+#: suffix of the temporary files of atomic writes
+TEMP_SUFFIX = ".tmp"
+#: when this process started (temporary files older than that, by a margin, are abandoned)
+PROCESS_START = time.time()
+#: margin for writers started a little before this process (seconds)
+TEMP_GRACE_S = 300.0
+
+
+def _file_mode() -> int:
+    """0666 less the process umask (read from /proc where possible: ``os.umask`` would race)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return 0o666 & ~int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    return 0o644
 
 
 def default_cache_dir() -> Path:
@@ -46,10 +68,12 @@ def make_key(**parts) -> str:
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
+    """Write ``data`` to ``path`` through a temporary file and an atomic rename (mode 0644)."""
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=TEMP_SUFFIX, dir=path.parent)
     try:
+        os.fchmod(fd, _file_mode())
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
@@ -58,6 +82,36 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def clean_temporaries(root: str | Path, older_than: float | None = None) -> int:
+    """Remove temporary files of atomic writes under ``root`` that were abandoned.
+
+    Parameters
+    ----------
+    root : path
+    older_than : float, optional
+        Modification-time cutoff (seconds since the epoch); by default the start of this
+        process less :data:`TEMP_GRACE_S`, so that a concurrent writer's file is left alone.
+
+    Returns
+    -------
+    int
+        The number of files removed.
+    """
+    root = Path(root)
+    cutoff = (PROCESS_START - TEMP_GRACE_S) if older_than is None else older_than
+    removed = 0
+    if not root.is_dir():
+        return 0
+    for path in root.rglob(f".*{TEMP_SUFFIX}"):
+        try:
+            if path.is_file() and path.stat().st_mtime < cutoff:
+                path.unlink()
+                removed += 1
+        except OSError:
+            continue
+    return removed
 
 
 def array_hash(array: np.ndarray) -> str:
@@ -92,7 +146,11 @@ class Cache:
         return self.root / kind / key[:2] / f"{key}.npz"
 
     def load(self, kind: str, key: str) -> dict[str, np.ndarray] | None:
-        """The arrays stored under ``(kind, key)``, or None (a corrupt entry counts as a miss)."""
+        """The arrays stored under ``(kind, key)``, or None.
+
+        An entry that cannot be read (truncated, altered, not an ``.npz``) counts as a miss: a
+        warning names the file and the error, and the file is removed so it is rendered again.
+        """
         if not self.enabled:
             return None
         path = self.path(kind, key)
@@ -102,7 +160,9 @@ class Cache:
                     arrays = {name: data[name] for name in data.files}
                 self.hits[kind] = self.hits.get(kind, 0) + 1
                 return arrays
-            except (OSError, ValueError, EOFError):
+            except Exception as exc:  # any unreadable file: zipfile.BadZipFile, OSError, ValueError, ...
+                warnings.warn(f"cache entry {path} is unreadable ({type(exc).__name__}: {exc}); "
+                              "removed, rendering it again", stacklevel=2)
                 path.unlink(missing_ok=True)
         self.misses[kind] = self.misses.get(kind, 0) + 1
         return None

@@ -33,3 +33,13 @@ def write_png(path: str | Path, image: np.ndarray, exposure: float = 1.0) -> Pat
     out.write_image(pixels)
     out.close()
     return path
+
+
+def write_pictures(folder: str | Path, name: str, output: np.ndarray, noisy: np.ndarray, noisy_name: str,
+                   reference: np.ndarray | None) -> None:
+    """PNGs of a filter's output, its noisy input and the reference (``--pictures``)."""
+    folder = Path(folder)
+    write_png(folder / f"{name}.png", output)
+    write_png(folder / f"{noisy_name}.png", noisy)
+    if reference is not None:
+        write_png(folder / "reference.png", reference)

@@ -1,28 +1,48 @@
 """The planner: which jobs run, which channels to render, what is skipped and why.
 
-A job is (scene, renderer, filter, backend, params, spp, seed). The planner renders only the
-union of channels that the selected filters need, and turns every combination that a scene,
-renderer or machine cannot serve into a skipped job with its reason, kept in the results.
+A job is one filter configuration on one rendered sequence: (task, scene, renderer, filter,
+backend, params, spp, seed) plus everything else that changes its rows (resolution, frames,
+metrics and their versions, repeats, reference quality, versions and settings of the plugins,
+the scene's content). Its id hashes all of it, so ``--resume`` reuses a stored job only when
+nothing it depends on changed.
+
+Tasks (DESIGN.md): a filter, a scene and a renderer each declare the tasks they serve; the
+planner pairs a scene with a renderer for each selected task the scene declares, runs there the
+filters that serve the task, and keeps every job a scene, renderer or machine cannot serve as a
+skipped row with its reason. Jobs sharing (task, scene, renderer, spp, seed) form a group that
+renders once: the union of the channels its filters and metrics need.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from harness.backends import cuda_available, resolve_backend
 from harness.cache import make_key, plain
+from harness.specs import TASKS
 
-#: renderers preferred for each scene kind when the user names none
-PREFERRED_RENDERERS = {"mesh": ("pathtracer",), "procedural": ("synthetic",)}
+#: renderers preferred for each (scene kind, task) when the user names none
+PREFERRED_RENDERERS = {
+    ("mesh", "denoise"): ("pathtracer",),
+    ("mesh", "antialias"): ("raster",),
+    ("procedural", "denoise"): ("synthetic",),
+    ("captured", "denoise"): ("captured",),
+}
+BACKEND_CHOICES = ("cpu", "cuda", "auto", "all")
 
 
 @dataclass(frozen=True)
 class Job:
-    """One benchmark job; ``job_id`` is a digest of every field."""
+    """One benchmark job; :attr:`job_id` is a digest of every field.
 
+    The first fields name the job; the rest are inputs that change its rows and so belong to
+    its identity (a stored job is reused only when all of them are equal).
+    """
+
+    task: str
     scene: str
     renderer: str
     filter: str
@@ -31,35 +51,58 @@ class Job:
     preset: str
     spp: int
     seed: int
+    scene_hash: str = ""
+    scene_version: str = ""
+    renderer_version: str = ""
+    renderer_settings: str = "{}"
+    filter_version: str = ""
+    width: int = 0
+    height: int = 0
+    frames: int = 1
+    metrics: tuple = ()  # (name, version) of every metric scored
+    repeats: int = 0
+    reference_spp: int = 0
+    nonfinite: str = "raise"
 
     @property
     def job_id(self) -> str:
-        return make_key(**self.__dict__)[:20]
+        return make_key(**asdict(self))[:20]
 
     @property
     def param_dict(self) -> dict:
         return json.loads(self.params)
 
+    @property
+    def resolution(self) -> tuple[int, int]:
+        return (self.width, self.height)
+
 
 @dataclass
 class MetricPlan:
-    """Metrics a group will score, and those skipped with their reason."""
+    """Metrics a group scores (by name), and those skipped with their reason."""
 
     frame: list = field(default_factory=list)
     sequence: list = field(default_factory=list)
     skipped: dict = field(default_factory=dict)  # metric name -> reason
 
+    @property
+    def names(self) -> list[str]:
+        return [*self.frame, *self.sequence, *self.skipped]
+
 
 @dataclass
 class Group:
-    """Jobs sharing one render: (scene, renderer, spp, seed) and the channels to produce."""
+    """Jobs sharing one render: (task, scene, renderer, spp, seed) and the channels to produce."""
 
+    task: str
     scene: str
     renderer: str
     spp: int
     seed: int
     channels: frozenset
     frames: int
+    resolution: tuple
+    reference_spp: int
     jobs: list = field(default_factory=list)
     metrics: MetricPlan = field(default_factory=MetricPlan)
 
@@ -74,132 +117,226 @@ class Plan:
         Runnable jobs grouped by render.
     skipped : list of (Job, str)
         Jobs that cannot run here, with the reason.
-    resolution : (int, int) or None
-        Override of every scene's default resolution.
+    settings : dict
+        The planning inputs (tasks, resolution, frames, repeats, ...) for the manifest.
     """
 
     groups: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
-    resolution: tuple | None = None
-    reference_spp: int | None = None
+    settings: dict = field(default_factory=dict)
 
     @property
     def jobs(self) -> list:
         return [job for g in self.groups for job in g.jobs]
 
+    @property
+    def metric_names(self) -> list[str]:
+        return list(dict.fromkeys(name for g in self.groups for name in g.metrics.names))
 
-def choose_renderer(registry, scene_spec) -> str | None:
-    """The renderer for a scene when the user names none: preferred, else the first compatible."""
-    compatible = [n for n, r in sorted(registry.renderers.items()) if scene_spec.kind in r.scene_kinds]
-    for name in PREFERRED_RENDERERS.get(scene_spec.kind, ()):
-        if name in compatible:
+
+def choose_renderer(registry, scene_spec, task: str) -> str | None:
+    """The renderer for a scene and task when the user names none: preferred, else the first that fits."""
+    fits = [
+        n for n, r in sorted(registry.renderers.items()) if scene_spec.kind in r.scene_kinds and task in r.tasks
+    ]
+    for name in PREFERRED_RENDERERS.get((scene_spec.kind, task), ()):
+        if name in fits:
             return name
-    return compatible[0] if compatible else None
+    return fits[0] if fits else None
 
 
 def filter_params(spec, preset: str | None, overrides: Mapping[str, Any]) -> tuple[dict, str]:
-    """Defaults, then the named preset, then ``overrides``; unknown names raise ``ValueError``."""
+    """Defaults, then the named preset, then ``overrides``, all checked against the spec.
+
+    Raises ``ValueError`` for an unknown preset or parameter, or a value out of its declaration.
+    """
     params = dict(spec.params)
     if preset:
         if preset not in spec.presets:
             raise ValueError(f"filter {spec.name!r} has no preset {preset!r}; presets: {sorted(spec.presets)}")
         params.update(spec.presets[preset])
-    unknown = sorted(set(overrides) - set(params))
-    if unknown:
-        raise ValueError(f"filter {spec.name!r} has no parameter(s) {unknown}; parameters: {sorted(params)}")
-    params.update(overrides)
+    params.update(spec.check_params(overrides))
     return params, preset or ""
+
+
+def check_choices(
+    *, spp=(1,), seeds=(0,), frames=None, resolution=None, repeats=1, reference_spp=None, backends=("auto",)
+) -> None:
+    """Raise a one-line ``ValueError`` for any value out of range (the CLI checks the same)."""
+
+    def ints(name, values, low):
+        for v in values:
+            if isinstance(v, bool) or not isinstance(v, int) or v < low:
+                raise ValueError(f"{name} must be integers >= {low}, got {v!r}")
+
+    ints("spp", spp, 1)
+    ints("seeds", seeds, 0)
+    ints("repeats", [repeats], 1)
+    if not spp or not seeds:
+        raise ValueError("spp and seeds need at least one value each")
+    if frames is not None:
+        ints("frames", [frames], 1)
+    if reference_spp is not None:
+        ints("reference spp", [reference_spp], 1)
+    if resolution is not None:
+        ints("resolution", list(resolution), 1)
+    bad = [b for b in backends if b not in BACKEND_CHOICES]
+    if bad or not backends:
+        raise ValueError(f"backend must be one of {BACKEND_CHOICES}, got {list(backends)}")
 
 
 def make_plan(
     registry,
-    scenes,
-    filters,
-    metrics,
+    store,
+    scenes: Sequence,
+    filters: Sequence[str],
+    metrics: Sequence[str],
     *,
+    tasks: Sequence[str] = TASKS,
     renderer: str | None = None,
-    backends=("auto",),
-    spp=(1,),
-    seeds=(0,),
+    backends: Sequence[str] = ("auto",),
+    spp: Sequence[int] = (1,),
+    seeds: Sequence[int] = (0,),
     frames: int | None = None,
-    resolution: tuple | None = None,
     params: Mapping[str, Mapping[str, Any]] | None = None,
     presets: Mapping[str, str] | None = None,
+    repeats: int = 3,
     reference_spp: int | None = None,
-    scene_frames: Mapping[str, int] | None = None,
+    nonfinite: str = "raise",
 ) -> Plan:
     """Build the plan of a run.
 
     Parameters
     ----------
     registry : harness.Registry
+    store : harness.renders.RenderStore
+        Gives each scene's content hash, its resolution and each renderer's settings (they are
+        part of every job's identity).
     scenes : list of SceneSpec
     filters, metrics : list of str
         Filter and metric names (validated against the registry).
+    tasks : list of str
+        Tasks to run (:data:`harness.specs.TASKS`).
     renderer : str, optional
-        Renderer for every scene; by default one per scene (:func:`choose_renderer`).
-    backends : iterable of str
+        Renderer for every scene; by default one per scene and task (:func:`choose_renderer`).
+    backends : list of str
         ``cpu``, ``cuda``, ``auto`` (cuda where a GPU is present) or ``all`` (every backend the
         filter implements).
-    spp, seeds : iterables of int
+    spp, seeds : list of int
     frames : int, optional
         Cap on frames per scene.
-    resolution : (width, height), optional
     params : mapping filter -> {param: value}
     presets : mapping filter -> preset name
-    scene_frames : mapping scene -> frame count
-        Frame counts of scenes opened from folders (SceneSpec.frames otherwise).
+    repeats : int
+        Timed calls per frame.
+    reference_spp : int, optional
+        Samples per pixel of references (default: each renderer's ``reference_spp``).
+    nonfinite : {"raise", "repair"}
+        Policy for non-finite renderer output (part of the identity: it changes rows).
 
     Returns
     -------
     Plan
+
+    Raises
+    ------
+    ValueError, KeyError
+        For unknown names, parameters out of their declared range, or invalid choices.
     """
-    params = params or {}
-    presets = presets or {}
-    plan = Plan(resolution=resolution, reference_spp=reference_spp)
+    params = dict(params or {})
+    presets = dict(presets or {})
+    check_choices(spp=spp, seeds=seeds, frames=frames, repeats=repeats, reference_spp=reference_spp,
+                  backends=backends)
+    unknown_tasks = sorted(set(tasks) - set(TASKS))
+    if unknown_tasks or not tasks:
+        raise ValueError(f"task must be one of {TASKS}, got {list(tasks)}")
+    if not filters:
+        raise ValueError("no filters selected")
+    if renderer is not None:
+        registry.get("renderer", renderer)
     filter_specs = [registry.get("filter", f) for f in filters]
     metric_specs = [registry.get("metric", m) for m in metrics]
     for extra in set(params) | set(presets):
         if extra not in filters:
             raise ValueError(f"parameters given for filter {extra!r}, which is not selected")
     configured = {f.name: filter_params(f, presets.get(f.name), params.get(f.name, {})) for f in filter_specs}
+    metric_ids = tuple((m.name, m.version) for m in metric_specs)
+    plan = Plan(settings={
+        "tasks": list(tasks), "renderer": renderer, "backends": list(backends), "spp": list(spp),
+        "seeds": list(seeds), "frames": frames, "resolution": store.resolution_override, "repeats": repeats,
+        "reference_spp": reference_spp, "nonfinite": nonfinite, "filters": list(filters), "metrics": list(metrics),
+    })
 
     for scene_spec in scenes:
-        rname = renderer or choose_renderer(registry, scene_spec)
-        rspec = registry.renderers.get(rname) if rname else None
-        n_frames = (scene_frames or {}).get(scene_spec.name, scene_spec.frames)
-        if frames is not None:
-            n_frames = max(1, min(n_frames, frames))
-        for s in spp:
-            for seed in seeds:
-                group = None
-                for fspec in filter_specs:
-                    fparams, preset = configured[fspec.name]
-                    for backend in _backends_for(fspec, backends):
-                        job = Job(
-                            scene_spec.name,
-                            rname or "",
-                            fspec.name,
-                            backend,
-                            json.dumps(plain(fparams), sort_keys=True),
-                            preset,
-                            int(s),
-                            int(seed),
-                        )
-                        reason = _skip_reason(scene_spec, rname, rspec, fspec, backend)
-                        if reason:
-                            plan.skipped.append((job, reason))
-                            continue
-                        if group is None:
-                            group = Group(scene_spec.name, rname, int(s), int(seed), frozenset(), n_frames)
-                        group.jobs.append(job)
-                        group.channels = group.channels | ((fspec.requires | fspec.optional) & rspec.provides)
-                if group is not None:
-                    if "spp" in rspec.provides:
-                        group.channels = group.channels | {"spp"}
-                    group.metrics = _metric_plan(metric_specs, rspec, n_frames)
-                    plan.groups.append(group)
+        for task in tasks:
+            if task not in scene_spec.tasks:
+                continue
+            _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_specs, configured, metric_specs,
+                             metric_ids, backends=backends, spp=spp, seeds=seeds, frames=frames, repeats=repeats,
+                             reference_spp=reference_spp, nonfinite=nonfinite)
+    for fspec in filter_specs:
+        if not any(job.filter == fspec.name for job in plan.jobs) and not any(
+            job.filter == fspec.name for job, _ in plan.skipped
+        ):
+            job = Job(tasks[0], "", "", fspec.name, "", "{}", "", 0, 0, filter_version=fspec.version)
+            served = sorted(set(fspec.tasks) & set(tasks))
+            reason = (f"filter {fspec.name!r} serves {sorted(fspec.tasks)}; no selected scene is for that task"
+                      if served else f"filter {fspec.name!r} serves {sorted(fspec.tasks)}, not {list(tasks)}")
+            plan.skipped.append((job, reason))
     return plan
+
+
+def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_specs, configured, metric_specs,
+                     metric_ids, *, backends, spp, seeds, frames, repeats, reference_spp, nonfinite) -> None:
+    rname = renderer or choose_renderer(registry, scene_spec, task)
+    rspec = registry.renderers.get(rname) if rname else None
+    n_frames = scene_spec.frames if frames is None else max(1, min(scene_spec.frames, frames))
+    width, height = store.resolution_of(scene_spec)
+    ref_spp = 0
+    if rspec is not None and rspec.references:
+        ref_spp = reference_spp if reference_spp is not None else rspec.reference_spp
+    identity = {
+        "scene_version": scene_spec.version,
+        "width": width,
+        "height": height,
+        "frames": n_frames,
+        "metrics": metric_ids,
+        "repeats": repeats,
+        "reference_spp": ref_spp,
+        "nonfinite": nonfinite,
+    }
+    runnable = rspec is not None and scene_spec.kind in rspec.scene_kinds and task in rspec.tasks
+    if runnable:
+        identity.update(
+            scene_hash=store.scene_hash(scene_spec.name),
+            renderer_version=rspec.version,
+            renderer_settings=json.dumps(plain(store.renderer_settings(rname)), sort_keys=True),
+        )
+    for s in spp:
+        for seed in seeds:
+            group = None
+            for fspec in filter_specs:
+                if task not in fspec.tasks:
+                    continue
+                fparams, preset = configured[fspec.name]
+                for backend in _backends_for(fspec, backends):
+                    job = Job(task, scene_spec.name, rname or "", fspec.name, backend,
+                              json.dumps(plain(fparams), sort_keys=True), preset, int(s), int(seed),
+                              filter_version=fspec.version, **identity)
+                    reason = _skip_reason(scene_spec, task, rname, rspec, fspec, backend)
+                    if reason:
+                        plan.skipped.append((job, reason))
+                        continue
+                    if group is None:
+                        group = Group(task, scene_spec.name, rname, int(s), int(seed), frozenset(), n_frames,
+                                      (width, height), ref_spp)
+                    group.jobs.append(job)
+                    group.channels = group.channels | ((fspec.requires | fspec.optional) & _provides(scene_spec, rspec))
+            if group is not None:
+                if "spp" in _provides(scene_spec, rspec):
+                    group.channels = group.channels | {"spp"}
+                group.metrics = _metric_plan(metric_specs, rspec, n_frames)
+                plan.groups.append(group)
 
 
 def _backends_for(fspec, backends) -> list[str]:
@@ -213,21 +350,33 @@ def _backends_for(fspec, backends) -> list[str]:
     return list(dict.fromkeys(out))
 
 
-def _skip_reason(scene_spec, rname, rspec, fspec, backend) -> str:
+def _skip_reason(scene_spec, task, rname, rspec, fspec, backend) -> str:
     if rspec is None:
-        return (
-            f"no renderer for scene kind {scene_spec.kind!r}" if not rname else f"renderer {rname!r} is not registered"
-        )
+        if rname:
+            return f"renderer {rname!r} is not registered"
+        return f"no renderer serves task {task!r} for scene kind {scene_spec.kind!r}"
     if scene_spec.kind not in rspec.scene_kinds:
         return f"renderer {rname!r} renders {sorted(rspec.scene_kinds)} scenes, not {scene_spec.kind!r}"
+    if task not in rspec.tasks:
+        return f"renderer {rname!r} serves {sorted(rspec.tasks)}, not task {task!r}"
     missing = sorted(fspec.requires - rspec.provides)
     if missing:
         return f"filter {fspec.name!r} needs channel(s) {missing} that renderer {rname!r} does not provide"
+    missing = sorted(fspec.requires - _provides(scene_spec, rspec))
+    if missing:
+        return f"filter {fspec.name!r} needs channel(s) {missing} that scene {scene_spec.name!r} does not have"
     if backend not in fspec.backends:
         return f"filter {fspec.name!r} has no {backend!r} backend (has {list(fspec.backends)})"
     if backend == "cuda" and not cuda_available():
         return "cuda backend: no GPU on this machine (numba.cuda.is_available() is False)"
     return ""
+
+
+def _provides(scene_spec, rspec) -> frozenset:
+    """Channels a group can have: the renderer's, limited by the scene's where it declares them."""
+    if scene_spec.channels is None:
+        return rspec.provides
+    return rspec.provides & (scene_spec.channels | {"color"})
 
 
 def _metric_plan(metric_specs, rspec, n_frames) -> MetricPlan:
@@ -238,7 +387,7 @@ def _metric_plan(metric_specs, rspec, n_frames) -> MetricPlan:
         elif n_frames < m.min_frames:
             mp.skipped[m.name] = f"needs >= {m.min_frames} frames, scene has {n_frames}"
         elif m.kind == "sequence":
-            mp.sequence.append(m)
+            mp.sequence.append(m.name)
         else:
-            mp.frame.append(m)
+            mp.frame.append(m.name)
     return mp

@@ -95,29 +95,27 @@ class Registry:
     manager: Any = None
 
     def open_scene(self, path) -> Any:
-        """Open a scene folder or file through the plugins' ``open_scene`` hooks.
+        """Open a scene folder or file through the plugins' ``open_scene`` hook (first result wins).
 
         Raises
         ------
         FileNotFoundError
             When ``path`` does not exist.
         ValueError
-            When no plugin recognises it (the message lists the errors of those that failed).
+            When no plugin recognises it, or the one that does fails (the message says why).
         """
         path = Path(path)
         if not path.exists():
             raise FileNotFoundError(f"scene path {path} does not exist")
-        errors = []
-        for impl in self.manager.hook.open_scene.get_hookimpls() if self.manager else []:
-            try:
-                scene = impl.function(path=path)
-            except Exception as exc:
-                errors.append(f"{impl.plugin_name}: {short_error(exc)}")
-                continue
-            if scene is not None:
-                return scene
-        detail = "; ".join(errors) if errors else "no scene plugin recognises it"
-        raise ValueError(f"cannot open scene {path}: {detail}")
+        if self.manager is None:
+            raise ValueError(f"cannot open scene {path}: no plugins are loaded")
+        try:
+            scene = self.manager.hook.open_scene(path=path)
+        except Exception as exc:
+            raise ValueError(f"cannot open scene {path}: {short_error(exc)}") from None
+        if scene is None:
+            raise ValueError(f"cannot open scene {path}: no scene plugin recognises it")
+        return scene
 
     def by_kind(self, kind: str) -> dict:
         return {"filter": self.filters, "renderer": self.renderers, "metric": self.metrics, "scene": self.scenes}[kind]
@@ -165,6 +163,32 @@ def disabled_names(extra: Iterable[str] = ()) -> set[str]:
     """Plugin names disabled by ``$DENOISE_HARNESS_DISABLE`` (comma-separated) and ``extra``."""
     names = {n.strip() for n in os.environ.get(DISABLE_ENV, "").split(",") if n.strip()}
     return names | set(extra)
+
+
+def _reject_unknown_hooks(pm, registry, origin) -> None:
+    """Unregister every plugin that implements a hook the harness does not specify.
+
+    A misspelled hook (``register_filter``) would otherwise be ignored silently: the plugin is
+    listed as broken, with the unknown name and the hooks that exist.
+    """
+    known = sorted(name for name in dir(hookspecs) if name.startswith(("register_", "open_")))
+    while True:
+        try:
+            pm.check_pending()
+            return
+        except pluggy.PluginValidationError as exc:
+            plugin = exc.plugin
+            name = pm.get_name(plugin)
+            unknown = sorted(
+                hook for hook, caller in vars(pm.hook).items()
+                if not caller.has_spec() and any(impl.plugin is plugin for impl in caller.get_hookimpls())
+            )
+            pm.unregister(plugin)
+            dist, ep_value = origin.pop(name, ("<unknown>", name))
+            registry.records.append(
+                PluginRecord("module", name, distribution=dist, entry_point=ep_value, status="broken",
+                             error=f"unknown hook(s) {unknown}; the hooks are {known}")
+            )
 
 
 def load_plugins(disable: Iterable[str] = (), extra: Iterable[Any] = (), entry_points: bool = True) -> Registry:
@@ -224,14 +248,17 @@ def load_plugins(disable: Iterable[str] = (), extra: Iterable[Any] = (), entry_p
         name = getattr(obj, "__name__", None) or f"extra-{i}-{type(obj).__name__}"
         pm.register(obj, name=name)
         origin[name] = ("<local>", name)
+    _reject_unknown_hooks(pm, registry, origin)
 
     for kind, (hook_name, spec_type) in _HOOKS.items():
         table = registry.by_kind(kind)
         for impl in getattr(pm.hook, hook_name).get_hookimpls():
             dist, ep_value = origin.get(impl.plugin_name, ("<unknown>", impl.plugin_name))
             digest = source_hash(impl.plugin)
+            others = [p for name, p in pm.list_name_plugin() if name != impl.plugin_name]
             try:
-                specs = list(impl.function() or [])
+                results = pm.subset_hook_caller(hook_name, remove_plugins=others)()
+                specs = [spec for result in results for spec in (result or [])]
                 for spec in specs:
                     if not isinstance(spec, spec_type):
                         raise TypeError(f"{hook_name} returned {type(spec).__name__}, expected {spec_type.__name__}")

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from harness import ChannelError, Frame, FrameMeta, NonFiniteError
-from harness.buffers import apply_nonfinite_policy, check_filter_output
+from harness.buffers import check_filter_output
+from harness.nonfinite import apply_nonfinite_policy
 from harness.testing import make_frame
 
 
@@ -40,6 +41,7 @@ def test_missing_channel_names_scene_and_available_channels():
 
 
 def test_nonfinite_policy_raise_and_repair_count():
+    """Colour NaN/Inf are counted; raise names the channels; repair makes them 0."""
     frame = make_frame(4, 4)
     color = frame["color"].copy()
     color[0, 0, 0] = np.nan
@@ -47,11 +49,11 @@ def test_nonfinite_policy_raise_and_repair_count():
     depth = frame["depth"].copy()
     depth[2, 2] = np.inf  # background depth is legal
     bad = frame.replace(color=color, depth=depth)
-    with pytest.raises(NonFiniteError, match="2 non-finite values"):
+    with pytest.raises(NonFiniteError, match=r"2 non-finite values \(color 2\)"):
         apply_nonfinite_policy(bad, "raise")
     fixed, count = apply_nonfinite_policy(bad, "repair")
     assert count == 2
-    assert np.isfinite(fixed["color"]).all()
+    assert np.isfinite(fixed["color"]).all() and fixed["color"][1, 1, 2] == 0.0
     assert np.isposinf(fixed["depth"][2, 2])
     same, zero = apply_nonfinite_policy(frame, "raise")
     assert same is frame and zero == 0

@@ -5,8 +5,7 @@ import pytest
 
 from harness import load_plugins
 from harness.cache import Cache
-from harness.plan import make_plan
-from harness.runner import Runner, RunOptions
+from harness.renders import REFERENCE_SEED, RenderStore
 from tests.test_run import bench
 
 
@@ -27,30 +26,59 @@ class Interrupting:
                                      resolution=resolution)
 
 
-def _runner(tmp_path):
+def _store(tmp_path):
     reg = load_plugins()
-    plan = make_plan(reg, [reg.scenes["synthetic-edges"]], [], [], resolution=(20, 10))
-    return Runner(reg, plan, Cache(tmp_path / "cache"), tmp_path / "o", RunOptions(progress=False)), reg
+    return RenderStore(reg, Cache(tmp_path / "cache"), resolution=(20, 10)), reg
 
 
 def test_chunked_reference_resumes_where_it_stopped(tmp_path):
-    runner, reg = _runner(tmp_path)
-    scene = runner.scene("synthetic-edges")
+    store, reg = _store(tmp_path)
+    scene = store.scene("synthetic-edges")
     inner = reg.renderers["synthetic"].factory()
-    runner._renderers["synthetic"] = Interrupting(inner, fail_after=2)
+    store._renderers["synthetic"] = Interrupting(inner, fail_after=2)
     with pytest.raises(KeyboardInterrupt):
-        runner.ensure_reference("synthetic", scene, 0, spp=20, chunk=6)
-    assert runner._renderers["synthetic"].calls == [(0, 6), (6, 6)]
+        store.reference(scene, "synthetic", 0, spp=20, chunk=6)
+    assert store._renderers["synthetic"].calls == [(0, 6), (6, 6)]
     resumed = Interrupting(inner, fail_after=99)
-    runner._renderers["synthetic"] = resumed
-    ref = runner.ensure_reference("synthetic", scene, 0, spp=20, chunk=6)
+    store._renderers["synthetic"] = resumed
+    ref = store.reference(scene, "synthetic", 0, spp=20, chunk=6)
     assert resumed.calls == [(12, 6), (18, 2)]  # the first 12 samples were not rendered again
-    whole = inner.accumulate(scene, 0, first_sample=0, count=20, seed=1_000_003, resolution=(20, 10)) / 20
+    whole = inner.accumulate(scene, 0, first_sample=0, count=20, seed=REFERENCE_SEED, resolution=(20, 10)) / 20
     np.testing.assert_allclose(ref, whole, rtol=1e-6)
     assert not list((tmp_path / "cache" / "partial").rglob("*.npz"))  # the checkpoint is gone
     again = Interrupting(inner, fail_after=0)
-    runner._renderers["synthetic"] = again
-    assert np.array_equal(runner.ensure_reference("synthetic", scene, 0, spp=20, chunk=6), ref)  # from the cache
+    store._renderers["synthetic"] = again
+    assert np.array_equal(store.reference(scene, "synthetic", 0, spp=20, chunk=6), ref)  # from the cache
+
+
+def test_chunking_does_not_change_a_reference(tmp_path):
+    """Sums of consecutive chunks added in order give the same reference bit for bit."""
+    store, _ = _store(tmp_path)
+    a = store.reference("synthetic-moving", "synthetic", 1, spp=12, chunk=5)
+    b = RenderStore(store.registry, Cache(tmp_path / "other"), resolution=(20, 10)).reference(
+        "synthetic-moving", "synthetic", 1, spp=12, chunk=12)
+    assert np.array_equal(a, b)
+
+
+def test_chunk_and_spp_must_be_positive(tmp_path):
+    store, _ = _store(tmp_path)
+    for bad in (0, -5, 2.5):
+        with pytest.raises(ValueError, match="chunk must be an integer >= 1"):
+            store.reference("synthetic-edges", "synthetic", 0, spp=8, chunk=bad)
+    with pytest.raises(ValueError, match="reference spp"):
+        store.reference("synthetic-edges", "synthetic", 0, spp=-1)
+
+
+def test_an_invalid_checkpoint_is_discarded_with_a_warning(tmp_path):
+    """A checkpoint claiming a negative sample count (what --chunk -5 used to store) is not trusted."""
+    store, _ = _store(tmp_path)
+    scene = store.scene("synthetic-edges")
+    key = store.key("reference", scene, "synthetic", 0, spp=8, seed=REFERENCE_SEED)
+    store.cache.store("partial", key, {"sum": np.zeros((10, 20, 3)), "done": np.asarray(-5)})
+    with pytest.warns(UserWarning, match="checkpoint .* is invalid"):
+        ref = store.reference(scene, "synthetic", 0, spp=8, chunk=3)
+    fresh = RenderStore(store.registry, resolution=(20, 10)).reference(scene, "synthetic", 0, spp=8, chunk=3)
+    assert np.array_equal(ref, fresh)
 
 
 def test_render_command_fills_the_cache_that_run_uses(tmp_path):

@@ -14,9 +14,11 @@ import pytest
 
 from harness import FilterSpec, RendererSpec, hookimpl, load_plugins
 from harness.cache import Cache
+from harness.executors import make_executor
 from harness.plan import make_plan
-from harness.results import TIMING_COLUMNS
-from harness.runner import Runner, RunOptions
+from harness.renders import RenderStore
+from harness.rows import TIMING_COLUMNS
+from harness.run import run_plan
 from tests.conftest import bench_env
 
 BASE = [
@@ -42,7 +44,15 @@ def bench(args, env=None, check=True):
 
 
 def without_timing(df):
-    return df.drop(columns=TIMING_COLUMNS).sort_values(["job_id", "frame"]).reset_index(drop=True)
+    return df.drop(columns=[*TIMING_COLUMNS, "machine"]).sort_values(["job_id", "frame"]).reset_index(drop=True)
+
+
+def run_api(reg, tmp_path, scenes, filters, metrics, executor="inline", resolution=None, **plan_options):
+    """Plan and run through the library (no CLI); returns the results table."""
+    store = RenderStore(reg, Cache(tmp_path / "c"), resolution=resolution)
+    plan = make_plan(reg, store, [reg.scenes[s] for s in scenes], filters, metrics, **plan_options)
+    with make_executor(executor, registry=reg) as ex:
+        return run_plan(reg, plan, store, ex, tmp_path / "o", progress=False).table
 
 
 def test_run_writes_results_and_manifest_and_reuses_the_cache(tmp_path):
@@ -155,10 +165,8 @@ def _bad_plugin():
 
 def test_broken_filters_give_error_rows_and_the_run_goes_on(tmp_path):
     reg = load_plugins(extra=[_bad_plugin()])
-    plan = make_plan(
-        reg, [reg.scenes["synthetic-moving"]], ["bad_raise", "bad_shape", "bad_nan", "passthrough"], ["rmse"], frames=2
-    )
-    df = Runner(reg, plan, Cache(tmp_path / "c"), tmp_path / "o", RunOptions(repeats=1, progress=False)).run()
+    df = run_api(reg, tmp_path, ["synthetic-moving"], ["bad_raise", "bad_shape", "bad_nan", "passthrough"], ["rmse"],
+                 frames=2, repeats=1)
     status = df.groupby("filter").status.agg(lambda s: ",".join(sorted(set(s))))
     assert status.to_dict() == {"bad_nan": "error", "bad_raise": "error", "bad_shape": "error", "passthrough": "ok"}
     msg = df.set_index("filter").message
@@ -211,6 +219,12 @@ def test_planner_skips_with_reasons_and_renders_only_needed_channels():
         def settings(self):
             return {}
 
+        def render(self, scene, frame_index, *, spp, seed, channels, resolution):
+            raise NotImplementedError
+
+        def reference(self, scene, frame_index, *, spp, seed, resolution):
+            raise NotImplementedError
+
     @hookimpl
     def register_renderers():
         return [RendererSpec(name="flat", version="0", factory=Flat, provides={"color"}, scene_kinds={"procedural"})]
@@ -223,8 +237,10 @@ def test_planner_skips_with_reasons_and_renders_only_needed_channels():
     colour_only.register_filters = register_filters
     reg = load_plugins(extra=[colour_only])
     scene = reg.scenes["synthetic-edges"]
+    store = RenderStore(reg)
     plan = make_plan(
         reg,
+        store,
         [scene],
         ["opencv_jbf", "passthrough", "gpu_only"],
         ["temporal_error", "rmse"],
@@ -241,7 +257,7 @@ def test_planner_skips_with_reasons_and_renders_only_needed_channels():
         assert "no GPU" in reasons[("gpu_only", "cuda")]
     assert [j.filter for j in plan.jobs] == ["passthrough"]
     assert plan.groups[0].metrics.skipped == {"temporal_error": "needs >= 2 frames, scene has 1"}
-    plan = make_plan(reg, [scene], ["opencv_jbf", "passthrough"], [])
+    plan = make_plan(reg, store, [scene], ["opencv_jbf", "passthrough"], [])
     assert plan.groups[0].channels == {"color", "normal", "spp"}
 
 
@@ -250,29 +266,22 @@ def test_unknown_names_and_params_are_clear_errors(tmp_path):
     assert out.returncode == 2 and "no filter named 'nosuch'" in out.stderr
     out = bench(["run", "--filters", "gaussian", "--param", "gaussian.sigmaa=2", "--out", tmp_path / "o"], check=False)
     assert out.returncode == 2 and "has no parameter(s) ['sigmaa']" in out.stderr
+    out = bench(["run", "--filters", "eaw", "--param", "eaw.iterations=-3", "--out", tmp_path / "o"], check=False)
+    assert out.returncode == 2 and "parameter 'iterations' must be int in [1, 10], got -3" in out.stderr
 
 
 def test_cache_key_misses_when_the_scene_changes(tmp_path):
     reg = load_plugins()
-    spec = reg.scenes["synthetic-edges"]
-    plan = make_plan(reg, [spec], ["passthrough"], [], resolution=(16, 12))
-    runner = Runner(reg, plan, Cache(tmp_path), tmp_path / "o", RunOptions(progress=False))
-    scene = spec.factory()
-    group = plan.groups[0]
-    runner.get_frame(group, scene, 0)
-    runner.get_frame(group, scene, 0)
-    assert runner.cache.hits == {"frames": 1} and runner.cache.misses == {"frames": 1}
-    changed = spec.factory()
+    store = RenderStore(reg, Cache(tmp_path), resolution=(16, 12))
+    scene = reg.scenes["synthetic-edges"].factory()
+    store.frame(scene, "synthetic", 0, spp=1, seed=0, channels={"normal"})
+    store.frame(scene, "synthetic", 0, spp=1, seed=0, channels={"normal"})
+    assert store.cache.hits == {"frames": 1} and store.cache.misses == {"frames": 1}
+    changed = reg.scenes["synthetic-edges"].factory()
     changed.params = {**changed.params, "checker": 4}
     changed._hash = None
-    runner.get_frame(group, changed, 0)
-    assert runner.cache.misses == {"frames": 2}
-    # an entry truncated by a crash counts as a miss, not an error
-    key_files = list((tmp_path / "frames").rglob("*.npz"))
-    key_files[0].write_bytes(b"garbage")
-    runner.get_frame(group, scene, 0)
-    runner.get_frame(group, changed, 0)
-    assert runner.cache.misses["frames"] >= 3
+    store.frame(changed, "synthetic", 0, spp=1, seed=0, channels={"normal"})
+    assert store.cache.misses == {"frames": 2}
 
 
 @pytest.mark.skipif(os.name != "posix", reason="uses POSIX signals")

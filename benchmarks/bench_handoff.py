@@ -1,0 +1,114 @@
+"""What the ``local`` executor's worker process costs, against running jobs in this process.
+
+Prints, for one group of frames at the given resolution:
+
+* the worker's start-up time (interpreter, plugins);
+* the wall time of a trivial job (``passthrough``, one timed call per frame) run inline and in
+  the worker: the difference is the per-job hand-off (task out, rows back); the first job of a
+  group also carries the group's frames to the worker;
+* a real filter's per-frame median time measured inline and in the worker, alternating, to show
+  that the worker adds nothing inside the timed region.
+
+Usage::
+
+    python benchmarks/bench_handoff.py --resolution 1280x720 --frames 4 --jobs 10 --filter eaw --rounds 3
+
+Measured on a 2-core AMD EPYC (Zen 5) VM, shared with other work, 2 Numba threads, 1280x720,
+synthetic-moving, 4 frames (12 channels, 61 MB of frames and references):
+see docs/architecture.md ("The worker hand-off") for the figures and their reading.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+from harness import load_plugins
+from harness.cache import Cache, make_key
+from harness.executors import InlineExecutor, LocalExecutor
+from harness.executors.base import PluginOptions, Shared
+from harness.jobs import GroupInputs
+from harness.machine import cpu_model
+from harness.plan import Job, MetricPlan
+from harness.renders import RenderStore
+from harness.tasks import JobTask
+
+
+def group_inputs(reg, resolution, frames, channels) -> GroupInputs:
+    store = RenderStore(reg, Cache(enabled=False), resolution=resolution)
+    inputs = GroupInputs([], [], [], [], channels=channels)
+    for t in range(frames):
+        inputs.frames.append(store.frame("synthetic-moving", "synthetic", t, spp=1, seed=0, channels=channels))
+        inputs.references.append(store.reference("synthetic-moving", "synthetic", t, spp=0))
+        inputs.reference_hashes.append("")
+        inputs.repaired.append(0)
+    return inputs
+
+
+def tasks_for(name, resolution, frames, repeats, inputs, count, key):
+    job = Job("denoise", "synthetic-moving", "synthetic", name, "cpu", "{}", "", 1, 0, width=resolution[0],
+              height=resolution[1], frames=frames, repeats=repeats)
+    return [JobTask(job, MetricPlan(), Shared(key, inputs)) for _ in range(count)]
+
+
+def timed_run(executor, tasks):
+    start = time.perf_counter()
+    outcomes = [o for _, o in executor.run(tasks)]
+    assert all(o.ok for o in outcomes), [o.error for o in outcomes if not o.ok]
+    return time.perf_counter() - start, outcomes
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--resolution", default="1280x720")
+    parser.add_argument("--frames", type=int, default=4)
+    parser.add_argument("--jobs", type=int, default=10)
+    parser.add_argument("--filter", default="eaw")
+    parser.add_argument("--rounds", type=int, default=3)
+    args = parser.parse_args()
+    resolution = tuple(int(v) for v in args.resolution.split("x"))
+    reg = load_plugins()
+    channels = frozenset(reg.filters[args.filter].requires | {"normal", "position"})
+    inputs = group_inputs(reg, resolution, args.frames, channels)
+    megabytes = sum(a.nbytes for f in inputs.frames for a in f.arrays().values()) / 1e6
+    megabytes += sum(r.nbytes for r in inputs.references) / 1e6
+    print(f"{cpu_model()}; {args.resolution}, {args.frames} frames, {megabytes:.0f} MB of inputs per group")
+
+    inline = InlineExecutor(reg)
+    start = time.perf_counter()
+    local = LocalExecutor(plugins=PluginOptions(), timeout=600)
+    local._start()
+    print(f"worker start-up: {time.perf_counter() - start:.2f} s")
+
+    trivial = []
+    for r in range(args.rounds):
+        key = make_key(round=r)
+        for name, ex in (("inline", inline), ("local", local)):
+            first, _ = timed_run(ex, tasks_for("passthrough", resolution, args.frames, 1, inputs, 1, key))
+            rest, _ = timed_run(ex, tasks_for("passthrough", resolution, args.frames, 1, inputs, args.jobs, key))
+            trivial.append((name, first, rest / args.jobs))
+    for name in ("inline", "local"):
+        firsts = [f for n, f, _ in trivial if n == name]
+        per = [p for n, _, p in trivial if n == name]
+        print(f"passthrough job, {name:6s}: first of a group {1e3 * statistics.median(firsts):7.1f} ms, "
+              f"then {1e3 * statistics.median(per):7.1f} ms per job (median of {args.rounds} rounds)")
+    hand = statistics.median(p for n, _, p in trivial if n == "local") - statistics.median(
+        p for n, _, p in trivial if n == "inline")
+    ship = statistics.median(f for n, f, _ in trivial if n == "local") - statistics.median(
+        f for n, f, _ in trivial if n == "inline")
+    print(f"hand-off per job: {1e3 * hand:.1f} ms; shipping a group's inputs once: {1e3 * (ship - hand):.1f} ms")
+
+    ms = {"inline": [], "local": []}
+    for r in range(args.rounds):
+        key = make_key(timing=r)
+        for name, ex in (("inline", inline), ("local", local)):
+            _, outcomes = timed_run(ex, tasks_for(args.filter, resolution, 2, 5, inputs, 1, key))
+            ms[name].append(outcomes[0].value.rows[-1].ms_median)
+    for name, values in ms.items():
+        print(f"{args.filter} ms per frame, {name:6s}: " + ", ".join(f"{v:.1f}" for v in values))
+    local.close()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,51 @@
+"""The ``denoise-bench`` command: argument parsing (:mod:`.parser`) and printing (:mod:`.commands`).
+
+Sub-commands: ``run`` (the benchmark), ``plugins`` (what is registered), ``show`` (summary and
+leaderboard of a stored run), ``render`` (references into the cache), ``bench`` (per-frame
+timing of filters against peers) and ``train`` (learned filters). Nothing in the library imports
+this package.
+"""
+
+from __future__ import annotations
+
+import sys
+import warnings
+
+from harness.lock import FolderLocked
+from harness.plugins import PluginConflictError, load_plugins
+
+#: exceptions that mean the user asked for something that cannot be (exit status 2, one line)
+USER_ERRORS = (KeyError, ValueError, FileNotFoundError, NotADirectoryError, FolderLocked)
+
+
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"denoise-bench: warning: {message}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``denoise-bench``; returns the exit status."""
+    from harness.cli import commands
+    from harness.cli.parser import build_parser
+
+    args = build_parser().parse_args(argv)
+    warnings.showwarning = _warning_line
+    try:
+        registry = load_plugins(disable=args.disable)
+    except PluginConflictError as exc:
+        print(f"denoise-bench: {exc}", file=sys.stderr)
+        return 2
+    for record in registry.broken:
+        if record.kind == "module" and record.error.startswith("unknown hook"):
+            print(f"denoise-bench: warning: plugin {record.name!r} ({record.distribution}): {record.error}",
+                  file=sys.stderr)
+    handler = getattr(commands, f"cmd_{args.command}")
+    try:
+        return handler(registry, args)
+    except USER_ERRORS as exc:
+        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        print(f"denoise-bench {args.command}: {message}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"\ndenoise-bench {args.command}: interrupted; stored results are kept (rerun with --resume)",
+              file=sys.stderr)
+        return 130

@@ -1,0 +1,252 @@
+"""The ``denoise-bench`` argument parser: every option checked before any work.
+
+A bad value is a one-line message (``denoise-bench run: error: ...``) and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from harness.cache import default_cache_dir
+from harness.executors import DEFAULT_TIMEOUT_S, EXECUTORS
+from harness.plan import BACKEND_CHOICES
+from harness.specs import TASKS
+
+DEFAULT_OUT = Path("out") / "latest"
+MAX_SIDE = 32768
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line (no usage block) and exit 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def names(value: str) -> list[str]:
+    """A comma-separated list of names, at least one."""
+    items = [v.strip() for v in value.split(",") if v.strip()]
+    if not items:
+        raise argparse.ArgumentTypeError(f"needs at least one name, got {value!r}")
+    return items
+
+
+def integers(low: int):
+    """A comma-separated list of integers >= ``low``."""
+
+    def parse(value: str) -> list[int]:
+        try:
+            items = [int(v) for v in value.split(",") if v.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be integers separated by commas, got {value!r}") from None
+        if not items or min(items) < low:
+            raise argparse.ArgumentTypeError(f"must be integers >= {low}, got {value!r}")
+        return items
+
+    return parse
+
+
+def integer(low: int):
+    """One integer >= ``low``."""
+
+    def parse(value: str) -> int:
+        try:
+            number = int(value)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be an integer, got {value!r}") from None
+        if number < low:
+            raise argparse.ArgumentTypeError(f"must be >= {low}, got {number}")
+        return number
+
+    return parse
+
+
+def positive_seconds(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of seconds, got {value!r}") from None
+    if not number > 0 or number == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {value!r}")
+    return number
+
+
+def resolution(value: str) -> tuple[int, int]:
+    """``WIDTHxHEIGHT``, each side in [1, 32768]."""
+    try:
+        w, h = value.lower().split("x")
+        res = (int(w), int(h))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"resolution must look like 1280x720, got {value!r}") from None
+    if not (1 <= res[0] <= MAX_SIDE and 1 <= res[1] <= MAX_SIDE):
+        raise argparse.ArgumentTypeError(f"resolution sides must be in [1, {MAX_SIDE}], got {value!r}")
+    return res
+
+
+def resolutions(value: str) -> list[tuple[int, int]]:
+    """A comma-separated list of resolutions."""
+    return [resolution(v) for v in names(value)]
+
+
+def param(value: str) -> tuple[str, str, object]:
+    """``FILTER.NAME=VALUE`` with a JSON value (a bare word is a string)."""
+    try:
+        key, raw = value.split("=", 1)
+        name, field = key.split(".", 1)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must look like FILTER.NAME=VALUE, got {value!r}") from None
+    if not name or not field:
+        raise argparse.ArgumentTypeError(f"must look like FILTER.NAME=VALUE, got {value!r}")
+    try:
+        parsed = json.loads(raw)
+    except json.JSONDecodeError:
+        parsed = raw
+    return name, field, parsed
+
+
+def preset(value: str) -> tuple[str, str]:
+    """``FILTER=PRESET``."""
+    name, _, chosen = value.partition("=")
+    if not name or not chosen:
+        raise argparse.ArgumentTypeError(f"must look like FILTER=PRESET, got {value!r}")
+    return name, chosen
+
+
+def backends(value: str) -> list[str]:
+    items = names(value)
+    bad = [b for b in items if b not in BACKEND_CHOICES]
+    if bad:
+        raise argparse.ArgumentTypeError(f"must be among {', '.join(BACKEND_CHOICES)}, got {', '.join(bad)}")
+    return items
+
+
+def out_dir(value: str) -> Path:
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
+    return path
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--disable", type=names, default=[], metavar="NAMES",
+                   help="plugins to disable, comma-separated (also $DENOISE_HARNESS_DISABLE)")
+
+
+def _add_executor(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--executor", choices=sorted(EXECUTORS), default="local",
+                   help="where jobs run: local (a worker process that isolates crashes and hangs; default) "
+                        "or inline (this process, for debugging)")
+    p.add_argument("--timeout", type=positive_seconds, default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
+                   help=f"a job with no progress for this long is stopped (default {DEFAULT_TIMEOUT_S:g})")
+
+
+def _add_selection(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scenes", type=names, default=None, metavar="NAMES",
+                   help="scenes to use, comma-separated (default: the built-in suite)")
+    p.add_argument("--scene-dir", action="append", default=[], metavar="PATH",
+                   help="also use the scene stored in this folder (e.g. a Mitsuba XML scene); repeatable")
+    p.add_argument("--renderer", default=None, help="renderer for every scene (default: the preferred one per "
+                                                    "scene kind and task)")
+    p.add_argument("--resolution", type=resolution, default=None, metavar="WxH",
+                   help="override every scene's resolution")
+    p.add_argument("--frames", type=integer(1), default=None, help="at most this many frames per scene")
+    p.add_argument("--cache-dir", type=Path, default=None,
+                   help=f"render cache (default: $DENOISE_HARNESS_CACHE or {default_cache_dir()})")
+    p.add_argument("--no-cache", action="store_true", help="neither read nor write the render cache")
+
+
+def build_parser() -> Parser:
+    parser = Parser(prog="denoise-bench", description="Benchmark real-time Monte Carlo denoising and anti-aliasing "
+                                                       "filters.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
+
+    run = sub.add_parser("run", help="render the scenes, run every filter, score and time them")
+    _add_selection(run)
+    run.add_argument("--task", choices=[*TASKS, "all"], default="all",
+                     help="denoise, antialias or all (default: all; the leaderboard is per task)")
+    run.add_argument("--filters", type=names, default=None, metavar="NAMES",
+                     help="filters to run (default: every filter serving the task)")
+    run.add_argument("--metrics", type=names, default=None, metavar="NAMES", help="metrics to score (default: all)")
+    run.add_argument("--backend", type=backends, default=["auto"], metavar="B",
+                     help="cpu, cuda, auto (cuda where a GPU is present) or all; comma-separated")
+    run.add_argument("--spp", type=integers(1), default=[1], metavar="N",
+                     help="samples per pixel of the noisy input (list)")
+    run.add_argument("--seeds", type=integers(0), default=[0], metavar="S", help="seeds of the noisy input (list)")
+    run.add_argument("--reference-spp", type=integer(1), default=None,
+                     help="samples per pixel of references (default: the renderer's)")
+    run.add_argument("--param", type=param, action="append", default=[], metavar="FILTER.NAME=VALUE",
+                     help="set a filter parameter (JSON value); repeatable")
+    run.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET",
+                     help="use a filter's named parameter preset; repeatable")
+    run.add_argument("--repeats", type=integer(1), default=3, help="timed calls per frame (default 3)")
+    run.add_argument("--out", type=out_dir, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
+    run.add_argument("--csv", action="store_true", help="also write results.csv")
+    run.add_argument("--pictures", action="store_true", help="write PNGs of every filter's first frame")
+    run.add_argument("--save-outputs", action="store_true",
+                     help="write every filter output as linear HDR OpenEXR under OUT/outputs/")
+    run.add_argument("--resume", action="store_true",
+                     help="keep stored jobs whose inputs are unchanged, run the rest")
+    run.add_argument("--strict", action="store_true", help="exit 1 if any job errored")
+    run.add_argument("--nonfinite", choices=["raise", "repair"], default="raise",
+                     help="NaN/Inf in renderer output: fail the render (raise) or replace and count (repair)")
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_executor(run)
+    _add_common(run)
+
+    plugins = sub.add_parser("plugins", help="list every plugin with its declarations and status")
+    plugins.add_argument("--format", choices=["table", "json"], default="table")
+    _add_common(plugins)
+
+    show = sub.add_parser("show", help="summary table and leaderboard of a stored run")
+    show.add_argument("dir", type=Path)
+    show.add_argument("--all", action="store_true", help="print every row, not the summary")
+    show.add_argument("--markdown", type=Path, default=None, metavar="FILE",
+                      help="also write the summary and leaderboard as markdown to FILE")
+    _add_common(show)
+
+    render = sub.add_parser("render", help="render references into the cache (chunked, resumable)")
+    _add_selection(render)
+    render.add_argument("--task", choices=list(TASKS), default="denoise",
+                        help="whose references: denoise (default) or antialias")
+    render.add_argument("--spp", type=integer(1), default=None,
+                        help="reference samples per pixel (default: the renderer's)")
+    render.add_argument("--chunk", type=integer(1), default=64, help="samples per chunk between checkpoints")
+    _add_common(render)
+
+    export = sub.add_parser("export", help="write scenes' frames, G-buffers and references as OpenEXR captures")
+    _add_selection(export)
+    export.add_argument("--out", type=out_dir, required=True, help="folder receiving one capture folder per scene")
+    export.add_argument("--task", choices=list(TASKS), default="denoise", help="whose frames and references")
+    export.add_argument("--spp", type=integer(1), default=1, help="samples per pixel of the frames (default 1)")
+    export.add_argument("--seed", type=integer(0), default=0, help="seed of the frames (default 0)")
+    export.add_argument("--reference-spp", type=integer(1), default=None,
+                        help="samples per pixel of references (default: the renderer's)")
+    export.add_argument("--half", action="store_true", help="store half floats (smaller; not bit-exact)")
+    _add_common(export)
+
+    bench = sub.add_parser("bench", help="time filters per frame against peers in the same process")
+    bench.add_argument("filters", type=names, help="filter(s) to time, comma-separated")
+    bench.add_argument("--peers", type=lambda v: [] if v.strip() == "" else names(v), default=None, metavar="NAMES",
+                       help="peer filters timed on the same frame (default: opencv_jbf,oidn where registered)")
+    bench.add_argument("--scene", default="synthetic-edges")
+    bench.add_argument("--renderer", default=None)
+    bench.add_argument("--task", choices=list(TASKS), default="denoise")
+    bench.add_argument("--resolution", type=resolutions, default=[(1280, 720), (1920, 1080)], metavar="WxH,...")
+    bench.add_argument("--backend", choices=["cpu", "cuda"], default="cpu")
+    bench.add_argument("--repeats", type=integer(1), default=10)
+    bench.add_argument("--param", type=param, action="append", default=[], metavar="FILTER.NAME=VALUE")
+    bench.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET")
+    bench.add_argument("--cache-dir", type=Path, default=None)
+    _add_executor(bench)
+    _add_common(bench)
+
+    train = sub.add_parser("train", help="train a learned filter and write its weights")
+    train.add_argument("filter")
+    train.add_argument("--seed", type=integer(0), default=0)
+    train.add_argument("--output", type=Path, default=None,
+                       help="weights file (default: the filter's shipped location)")
+    train.add_argument("--quick", action="store_true", help="a short run (minutes) for smoke tests")
+    _add_common(train)
+    return parser

@@ -1,0 +1,229 @@
+"""A benchmark run: a plan's groups rendered through the store, jobs handed to an executor, rows stored.
+
+The data flow (docs/architecture.md): plan -> render store -> executor -> job -> rows ->
+results. This module wires them and owns the output folder:
+
+* the folder is locked for the run (a second run into it stops with the holder's name);
+* each job's rows are written to ``DIR/jobs/<job_id>.parquet`` (atomically) as it finishes, and
+  ``DIR/results.parquet`` is rewritten from them;
+* with ``resume`` a stored job whose id (every input of its rows) is in the plan is kept, the
+  rest is computed; stored jobs that the plan does not include are removed, so the folder holds
+  exactly one plan's results;
+* the manifest is written at the end however the run ends, and describes the stored table.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from harness.cache import array_hash, clean_temporaries, make_key
+from harness.errors import short_error
+from harness.executors.base import Executor, Shared
+from harness.exr import write_exr
+from harness.images import write_pictures
+from harness.jobs import GroupInputs, job_error_rows, skipped_row
+from harness.lock import FolderLock, check_out_dir
+from harness.manifest import make_manifest, write_manifest
+from harness.nonfinite import apply_nonfinite_policy
+from harness.plan import Group, Plan
+from harness.renders import RenderStore
+from harness.results import write_table
+from harness.rows import combine, make_table
+from harness.tasks import JobTask
+
+
+@dataclass
+class RunOutcome:
+    """What a run did.
+
+    Attributes
+    ----------
+    table : DataFrame
+        The stored results (every job of the plan).
+    reused : int
+        Stored jobs kept (``resume``).
+    removed : int
+        Stored jobs removed because the plan does not include them.
+    manifest : dict
+    """
+
+    table: pd.DataFrame
+    reused: int = 0
+    removed: int = 0
+    manifest: dict = field(default_factory=dict)
+
+
+def run_plan(
+    registry,
+    plan: Plan,
+    store: RenderStore,
+    executor: Executor,
+    out_dir: str | Path,
+    *,
+    resume: bool = False,
+    pictures: bool = False,
+    save_outputs: bool = False,
+    progress: bool = True,
+    on_status: Callable[[str], None] | None = None,
+) -> RunOutcome:
+    """Run every job of ``plan`` and store the results in ``out_dir``.
+
+    Parameters
+    ----------
+    registry : harness.Registry
+    plan : harness.plan.Plan
+    store : harness.renders.RenderStore
+        The store the plan was made with.
+    executor : harness.executors.Executor
+        Where jobs run.
+    out_dir : path
+        Receives ``jobs/``, ``results.parquet``, ``manifest.json`` (and ``images/``).
+    resume : bool
+        Keep stored jobs whose identity is unchanged.
+    pictures : bool
+        Write PNGs of each job's first output, the input and the reference.
+    save_outputs : bool
+        Write every output as a linear HDR OpenEXR file:
+        ``DIR/outputs/<scene>/<filter>[-preset]-<backend>-spp<N>-seed<S>/<frame>.exr``.
+    progress : bool
+        Show a progress bar (frames) on standard error.
+    on_status : callable, optional
+        Receives one-line status messages (what is being rendered or run).
+
+    Returns
+    -------
+    RunOutcome
+    """
+    out = check_out_dir(out_dir)
+    with FolderLock(out):
+        clean_temporaries(out)
+        if store.cache.enabled:
+            clean_temporaries(store.cache.root)
+        return _Run(registry, plan, store, executor, out, resume, pictures, save_outputs, progress,
+                    on_status).execute()
+
+
+class _Run:
+    def __init__(self, registry, plan, store, executor, out, resume, pictures, save_outputs, progress, on_status):
+        self.registry, self.plan, self.store, self.executor = registry, plan, store, executor
+        self.out, self.jobs_dir = out, out / "jobs"
+        self.resume, self.pictures, self.save_outputs, self.progress = resume, pictures, save_outputs, progress
+        self.status = on_status or (lambda text: None)
+        self.tables: dict[str, pd.DataFrame] = {}
+        self.reused = self.removed = 0
+
+    def execute(self) -> RunOutcome:
+        self.jobs_dir.mkdir(parents=True, exist_ok=True)
+        stored = self._prune()
+        from tqdm.auto import tqdm
+
+        total = sum(len(g.jobs) * g.frames for g in self.plan.groups)
+        bar = tqdm(total=total, disable=not self.progress, unit="frame", dynamic_ncols=True, leave=False)
+        try:
+            for job, reason in self.plan.skipped:
+                self._store(job.job_id, make_table([skipped_row(job, reason)], self.plan.metric_names), final=False)
+            for group in self.plan.groups:
+                self._run_group(group, stored, bar)
+        finally:
+            bar.close()
+            table = combine(self.tables.values())
+            write_table(table, self.out / "results.parquet")
+            manifest = make_manifest(self.registry, table, settings=self.plan.settings,
+                                     executor=self.executor.describe(), reused_jobs=self.reused)
+            write_manifest(manifest, self.out / "manifest.json")
+        return RunOutcome(table, self.reused, self.removed, manifest)
+
+    def _prune(self) -> dict:
+        """Stored job files to keep (``resume``); every other stored job file is removed."""
+        wanted = {job.job_id for job in self.plan.jobs}
+        keep = {}
+        for path in self.jobs_dir.glob("*.parquet"):
+            if self.resume and path.stem in wanted:
+                keep[path.stem] = path
+                continue
+            path.unlink(missing_ok=True)
+            if self.resume:
+                self.removed += 1
+        return keep
+
+    def _store(self, job_id: str, table: pd.DataFrame, final: bool = True) -> None:
+        write_table(table, self.jobs_dir / f"{job_id}.parquet")
+        self.tables[job_id] = table
+        if final:
+            write_table(combine(self.tables.values()), self.out / "results.parquet")
+
+    def _run_group(self, group: Group, stored: dict, bar) -> None:
+        pending = []
+        for job in group.jobs:
+            table = _read(stored.get(job.job_id))
+            if table is not None:
+                self.tables[job.job_id] = table
+                self.reused += 1
+                bar.update(group.frames)
+            else:
+                pending.append(job)
+        if not pending:
+            return
+        self.status(f"render {group.scene}")
+        bar.set_description(f"render {group.scene}")
+        try:
+            inputs = self._inputs(group, any(self.registry.filters[j.filter].adaptive for j in pending))
+        except Exception as exc:
+            for job in pending:
+                self._store(job.job_id, make_table(job_error_rows(job, f"render failed: {short_error(exc)}"),
+                                                   self.plan.metric_names))
+                bar.update(group.frames)
+            return
+        key = make_key(group=[group.task, group.scene, group.renderer, group.spp, group.seed, sorted(group.channels),
+                              group.frames, list(group.resolution), group.reference_spp, pending[0].scene_hash])
+        keep = "all" if self.save_outputs else ("first" if self.pictures else "none")
+        tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
+        for index, outcome in self.executor.run(tasks, progress=bar.update):
+            job = pending[index]
+            bar.set_description(tasks[min(index + 1, len(tasks) - 1)].label)
+            if outcome.ok:
+                rows, outputs = outcome.value.rows, outcome.value.outputs
+            else:
+                rows, outputs = job_error_rows(job, outcome.error, frame=min(outcome.progress, group.frames - 1)), {}
+                bar.update(max(group.frames - outcome.progress, 0))
+            self._store(job.job_id, make_table(rows, self.plan.metric_names))
+            preset = f"-{job.preset}" if job.preset else ""
+            if self.pictures and 0 in outputs:
+                write_pictures(self.out / "images" / job.scene, f"{job.filter}{preset}-{job.backend}-spp{job.spp}",
+                               outputs[0], inputs.frames[0]["color"], f"input-spp{job.spp}", inputs.references[0])
+            if self.save_outputs:
+                name = f"{job.filter}{preset}-{job.backend}-spp{job.spp}-seed{job.seed}"
+                folder = self.out / "outputs" / job.scene / name
+                for t, image in outputs.items():
+                    write_exr(folder / f"{t:04d}.exr", image)
+
+    def _inputs(self, group: Group, adaptive: bool) -> GroupInputs:
+        store = self.store
+        rspec = self.registry.renderers[group.renderer]
+        scene = store.scene(group.scene)
+        nonfinite = self.plan.settings.get("nonfinite", "raise")
+        inputs = GroupInputs([], [], [], [], channels=group.channels,
+                             scene=scene if adaptive and rspec.adaptive else None,
+                             renderer_settings=store.factory_settings(group.renderer))
+        for t in range(group.frames):
+            frame = store.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed, channels=group.channels)
+            frame, count = apply_nonfinite_policy(frame, nonfinite, owner=f"renderer {group.renderer!r}")
+            ref = store.reference(scene, group.renderer, t, spp=group.reference_spp) if rspec.references else None
+            inputs.frames.append(frame)
+            inputs.repaired.append(count)
+            inputs.references.append(ref)
+            inputs.reference_hashes.append(array_hash(ref) if ref is not None else "")
+        return inputs
+
+
+def _read(path: Path | None) -> pd.DataFrame | None:
+    if path is None:
+        return None
+    try:
+        return pd.read_parquet(path)
+    except Exception:  # an unreadable job file is recomputed
+        return None
