@@ -30,6 +30,28 @@ def test_squared_errors_subtract_the_reference_variance():
     assert math.isinf(metric("psnr")(ref, ref))
 
 
+def test_bias_correction_recovers_a_known_error_from_noisy_references():
+    """Truth ``mu``, an output with a known error field, 40 references ``mu + N(0, v)`` with known,
+    uneven ``v``: the corrected MSE is unbiased for the true MSE (mean within 3 standard errors,
+    every draw within 10%: its standard deviation is about 2.5% here), the uncorrected one
+    overstates it by ``mean(v)``."""
+    rng = np.random.default_rng(3)
+    mu = rng.uniform(0.2, 1.0, (64, 64, 3))
+    out = (mu + rng.normal(0.0, 0.05, mu.shape)).astype(np.float32)
+    true_mse = float(np.mean((out - mu) ** 2))
+    var = rng.uniform(0.0, 2.0 * true_mse, mu.shape).astype(np.float32)  # as noisy as the error itself
+    corrected, uncorrected = [], []
+    for _ in range(40):
+        ref = (mu + rng.normal(0.0, 1.0, mu.shape) * np.sqrt(var)).astype(np.float32)
+        corrected.append(metric("rmse")(out, ref, reference_variance=var) ** 2)
+        uncorrected.append(metric("rmse")(out, ref) ** 2)
+    corrected, uncorrected = np.array(corrected), np.array(uncorrected)
+    assert abs(corrected.mean() - true_mse) < 3 * corrected.std(ddof=1) / math.sqrt(len(corrected))
+    assert np.all(np.abs(corrected / true_mse - 1) < 0.10)
+    assert uncorrected.mean() == pytest.approx(true_mse + var.mean(), rel=0.02)
+    assert np.all(uncorrected > 1.5 * true_mse)
+
+
 def test_display_metrics_use_the_display_mapping_and_its_variance():
     rng = np.random.default_rng(0)
     ref = rng.uniform(0.0, 2.0, (8, 8, 3)).astype(np.float32)  # some pixels above display white
