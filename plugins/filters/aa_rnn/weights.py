@@ -23,7 +23,7 @@ FORMAT = "aa_rnn-weights"
 FORMAT_VERSION = 1
 #: the shipped weights, one file per depth; :data:`DEFAULT_LAYERS` is the filter's default
 WEIGHTS_DIR = Path(__file__).with_name("weights")
-DEFAULT_LAYERS = 4
+DEFAULT_LAYERS = 2
 
 
 class WeightsError(ValueError):
