@@ -14,7 +14,7 @@ from .weights import DEFAULT_LAYERS
 
 VERSION = "1.0"
 PARAMS = {
-    "layers": Param(DEFAULT_LAYERS, min=1, max=16, doc="hidden 3x3x32 conv + ReLU layers (shipped: 2, 4, 6)"),
+    "layers": Param(DEFAULT_LAYERS, min=1, max=16, doc="hidden 3x3x32 conv + ReLU layers (shipped: 2)"),
     "weights": Param(None, type="str", doc="a weights file; null for the shipped weights of `layers`"),
 }
 
