@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from harness import CHANNELS, CameraPath, NonFiniteError, load_plugins, read_channels, write_capture, write_channels
-from harness.nonfinite import apply_nonfinite_policy
 from harness.exr import layer_channels
+from harness.nonfinite import apply_nonfinite_policy
 from plugins.renderers.captured import CaptureError, CaptureWarning, open_capture
 from plugins.renderers.captured import conventions as conv
 from tests.pathtracer_scenes import box_scene
