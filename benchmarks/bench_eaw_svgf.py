@@ -295,7 +295,8 @@ def main() -> None:
             for name in filters:
                 print(f"{name:{width}s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
                       f"{min(cpu[name]):9.1f} {np.median(cpu[name]):9.1f}")
-            pairs = [("eaw", "opencv_jbf"), ("eaw", "floor_eaw"), ("svgf", "oidn"), ("svgf", "floor_svgf"),
+            # (a, b): b's time over a's, round by round ("eaw / floor_eaw" is x_of_floor)
+            pairs = [("eaw", "opencv_jbf"), ("floor_eaw", "eaw"), ("svgf", "oidn"), ("floor_svgf", "svgf"),
                      ("svgf", "eaw")] + [(n.split("@")[0], n) for n in baselines]
             for a, b in pairs:
                 if a in filters and b in filters:
