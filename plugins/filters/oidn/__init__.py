@@ -137,6 +137,14 @@ def register_filters():
                 "image exactly (measured error 0.36 on a 0.75 constant)",
                 "check_zero_image": "the network adds a bias of about 1e-3 to an all-zero image",
             },
+            # measured with `denoise-bench stress --filters oidn` (24x20 frames, fast quality)
+            stress_exempt={
+                "color-zero": "a learned denoiser: an all-zero image comes back at 8.1e-4 (network bias)",
+                "color-negative-zero": "-0.0 is zero radiance: the same 8.1e-4 bias as color-zero",
+                "color-constant": "a learned denoiser: a flat 0.25 image comes back with mean 0.25037 "
+                "(relative error 1.5e-3, the flat tolerance is 1e-3)",
+                "sequence-camera-cuts": "its first frame is flat: the same 1.5e-3 mean shift as color-constant",
+            },
             description="Intel Open Image Denoise RT filter, albedo+normal (peer)",
         )
     ]
