@@ -357,7 +357,7 @@ def cmd_bench(registry, args) -> int:
         result = bench_filters(
             registry, store, executor, args.filters, peers=peers, scene=args.scene, renderer=args.renderer,
             task=args.task, resolutions=args.resolution, backend=args.backend, repeats=args.repeats,
-            params=_grouped(args.param), presets=dict(args.preset),
+            params=_grouped(args.param), presets=dict(args.preset), error=args.error,
         )
     print(f"scene {args.scene}, backend {args.backend}, {numba.get_num_threads()} threads, {args.executor} "
           f"executor, {args.repeats} timed calls per frame (x_vs_PEER = peer ms / filter ms)")
