@@ -17,7 +17,9 @@ from .shapes import load_shape, sphere, to_polydata
 from .xmlscene import MitsubaWarning, get_color, parse, version, warn
 
 SKIPPED_QUIETLY = {"default", "integrator"}
-BLACK_BSDF = {"type": "diffuse", "reflectance": 0.0}  # the surface of the sphere standing for a point light
+# Mitsuba's default BSDF of an emitting shape that names none (its reflectance 0, measured against Mitsuba 3:
+# docs/pathtracer.md), also the surface of the sphere standing for a point light
+BLACK_BSDF = {"type": "diffuse", "reflectance": 0.0}
 
 
 def find_scene_file(folder: Path) -> Path | None:
@@ -108,10 +110,10 @@ def _load(path: Path, name: str | None) -> Scene:
             if mesh is None or len(mesh.corners) == 0:
                 continue
             desc, label = _shape_bsdf(node, ctx)
-            if desc is None:
-                desc, label = default_bsdf, "default"
             emission = None
             emitter = node.find("emitter")
+            if desc is None:  # Mitsuba's default: diffuse 0.5, black on an emitter
+                desc, label = (default_bsdf, "default") if emitter is None else (BLACK_BSDF, "emitter-default")
             if emitter is not None:
                 if emitter.get("type") != "area":
                     warn(f"shape emitter {emitter.get('type')!r} treated as an area light")
