@@ -96,13 +96,13 @@ CAMERA = """<sensor type="perspective"><float name="fov" value="40"/>
     <rfilter type="box"/></film></sensor>"""
 FLOOR = """<shape type="rectangle"><transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/>
     </transform><bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.5, 0.5"/></bsdf></shape>"""
+WALL = """<shape type="rectangle"><transform name="to_world"><scale value="3"/><translate y="1" z="-2"/></transform>
+    <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.6, 0.6"/></bsdf></shape>"""
 LIGHTS = {
     "env": """<emitter type="constant"><rgb name="radiance" value="1.0, 0.9, 0.8"/></emitter>""",
     "area": """<shape type="rectangle"><transform name="to_world"><scale value="0.6"/><rotate x="1" angle="90"/>
         <translate x="0.5" y="2.6" z="0.4"/></transform>
-        <emitter type="area"><rgb name="radiance" value="12, 11, 10"/></emitter></shape>
-        <shape type="rectangle"><transform name="to_world"><scale value="3"/><translate y="1" z="-2"/></transform>
-        <bsdf type="diffuse"><rgb name="reflectance" value="0.6, 0.6, 0.6"/></bsdf></shape>""",
+        <emitter type="area"><rgb name="radiance" value="12, 11, 10"/></emitter></shape>""" + WALL,
 }
 
 
@@ -235,3 +235,23 @@ def test_envmap_rotation_and_scale_agree_with_mitsuba(tmp_path):
     z, ratio = compare(xml)
     assert np.abs(z).max() <= Z_MAX, (
         f"envmap: max |z| = {np.abs(z).max():.1f}, ratios {ratio.min():.4f}-{ratio.max():.4f}")
+
+
+@pytest.mark.parametrize("light", ["point", "directional"])
+def test_delta_lights_agree_with_mitsuba(tmp_path, light):
+    """Mitsuba's point and directional lights (the harness's small sphere and small disc of the
+    same intensity and irradiance) lighting the rough plastic sphere on the floor, the wall behind."""
+    LIGHTS[light] = {
+        "point": """<emitter type="point"><point name="position" x="0.8" y="2.2" z="1.0"/>
+            <rgb name="intensity" value="6, 5, 4"/></emitter>""",
+        "directional": """<emitter type="directional"><vector name="direction" x="-0.4" y="-1" z="-0.5"/>
+            <rgb name="irradiance" value="3, 2.5, 2"/></emitter>""",
+    }[light] + WALL
+    try:
+        xml = write_case(tmp_path, BSDFS["roughplastic-beckmann"], light)
+    finally:
+        del LIGHTS[light]
+    z, ratio = compare(xml)
+    assert np.abs(z).max() <= Z_MAX, (
+        f"{light}: max |z| = {np.abs(z).max():.1f}, ratios {ratio.min():.4f}-{ratio.max():.4f}, "
+        f"median {np.median(ratio):.4f}")

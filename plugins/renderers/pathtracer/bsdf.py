@@ -305,9 +305,13 @@ def _rough_dielectric(node, nf, a, b, wo, wi):
     return b[0] * v, b[1] * v, b[2] * v, pdf
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def bsdf_eval(kind, node, nf, ni, tables, a, b, wo, wi):
     """``f * |cos(theta_i)|`` (r, g, b) and the pdf of :func:`bsdf_sample` for ``wi``.
+
+    The Lambertian case (most surfaces of most scenes) is computed where this is inlined; the
+    others in the called :func:`eval_any` (inlining every BSDF into the path kernel multiplies
+    its compile time).
 
     Parameters
     ----------
@@ -319,6 +323,17 @@ def bsdf_eval(kind, node, nf, ni, tables, a, b, wo, wi):
     wo, wi : 3-tuples
         Unit directions in the local frame (towards the viewer and towards the light).
     """
+    if kind == DIFFUSE:
+        if wo[2] <= 0.0 or wi[2] <= 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+        c = wi[2] * INV_PI
+        return a[0] * c, a[1] * c, a[2] * c, c
+    return eval_any(kind, node, nf, ni, tables, a, b, wo, wi)
+
+
+@njit(cache=True, error_model="numpy")
+def eval_any(kind, node, nf, ni, tables, a, b, wo, wi):
+    """:func:`bsdf_eval` for any kind (same arguments and result)."""
     if is_delta(kind):
         return 0.0, 0.0, 0.0, 0.0
     if kind == MI_ROUGHDIELECTRIC:
@@ -375,9 +390,9 @@ def _cosine(u1, u2):
     return (r * math.cos(phi), r * math.sin(phi), math.sqrt(max(1.0 - u1, 0.0)))
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def bsdf_sample(kind, node, nf, ni, tables, a, b, wo, u1, u2, u3):
-    """Sample a direction towards the light.
+    """Sample a direction towards the light (the Lambertian case inlined, as in :func:`bsdf_eval`).
 
     Returns
     -------
@@ -390,6 +405,19 @@ def bsdf_sample(kind, node, nf, ni, tables, a, b, wo, u1, u2, u3):
         Solid-angle pdf (for delta lobes the selection probability, unused).
     delta : bool
     """
+    if kind == DIFFUSE:
+        if wo[2] <= 0.0:
+            return (0.0, 0.0, 0.0), 0.0, 0.0, 0.0, 0.0, False
+        wi = _cosine(u1, u2)
+        if wi[2] <= 0.0:
+            return (0.0, 0.0, 0.0), 0.0, 0.0, 0.0, 0.0, False
+        return wi, a[0], a[1], a[2], wi[2] * INV_PI, False
+    return sample_any(kind, node, nf, ni, tables, a, b, wo, u1, u2, u3)
+
+
+@njit(cache=True, error_model="numpy")
+def sample_any(kind, node, nf, ni, tables, a, b, wo, u1, u2, u3):
+    """:func:`bsdf_sample` for any kind (same arguments and result)."""
     zero = (0.0, 0.0, 0.0)
     if kind <= MIRROR:
         wi, wr, wg, wb, pdf, dlt = _legacy_sample(kind, a, nf[node, F_AU], b, nf[node, F_ETA], wo, u1, u2, u3)

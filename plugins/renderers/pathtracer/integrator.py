@@ -25,6 +25,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .borrow import borrowed
 from .bsdf import (
     F_A,
     F_B,
@@ -85,6 +86,10 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
     """
     tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
     mat_root, mat_flags, mat_emit, node_kind, nf, ni, tables, tex_data, tex_off, tex_w, tex_h, tex_uv = mats
+    # the tables the called BSDF and material functions read, without reference counting (see .borrow)
+    node_kind, nf, ni, tables = borrowed(node_kind), borrowed(nf), borrowed(ni), borrowed(tables)
+    tex_data, tex_off, tex_w = borrowed(tex_data), borrowed(tex_off), borrowed(tex_w)
+    tex_h, tex_uv = borrowed(tex_h), borrowed(tex_uv)
     emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols = lights
     lr = lg = lb = 0.0
     dr = dg = db = 0.0

@@ -1,4 +1,4 @@
-"""Mitsuba emitters (environment, sun, sky) and the perspective sensor."""
+"""Mitsuba emitters (environment, sun, sky, directional, point) and the perspective sensor."""
 
 from __future__ import annotations
 
@@ -12,6 +12,11 @@ from harness import CameraPath, Environment, Sun, read_texture
 from .xmlscene import find, get_color, get_float, get_int, get_string, transform, vector, warn
 
 SUN_RADIUS = 0.2667  # degrees, Mitsuba's sun
+# The path tracer has no delta lights: Mitsuba's directional light becomes a disc this small
+# (degrees) of the same irradiance, its point light an emitting sphere of this radius (a fraction
+# of the scene's bounding-box diagonal) of the same intensity.
+DIRECTIONAL_RADIUS = 0.05
+POINT_RADIUS = 1e-3
 
 
 def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | None, Sun | None]:
@@ -50,8 +55,49 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
             radiance = (irradiance / solid_angle,) * 3
             sun = Sun(direction=tuple(direction), angular_radius=radius, radiance=radiance)
         return env, sun
+    if kind == "directional":
+        return None, directional(node)
+    if kind == "spot":
+        warn("spot light is not supported (the path tracer has no delta lights and no emission profile) and was "
+             "skipped")
+        return None, None
     warn(f"emitter type {kind!r} is not supported and was skipped")
     return None, None
+
+
+def directional(node: ET.Element) -> Sun:
+    """Mitsuba's ``directional`` emitter as a disc of :data:`DIRECTIONAL_RADIUS` degrees.
+
+    The light travels along ``direction`` (or ``toWorld``'s +z); the disc lies the other way and
+    its radiance ``E / (pi sin^2 r)`` gives the same ``irradiance`` E at normal incidence.
+    """
+    irradiance = get_color(node, "irradiance", (1.0, 1.0, 1.0), illuminant=True)
+    direction_node = find(node, "direction")
+    if direction_node is not None:
+        travel = vector(direction_node)
+    else:
+        travel = transform(find(node, "toWorld"))[:3, :3] @ np.array([0.0, 0.0, 1.0])
+    disc = np.pi * np.sin(np.radians(DIRECTIONAL_RADIUS)) ** 2
+    warn(f"directional light approximated by a disc of {DIRECTIONAL_RADIUS:g} degrees of the same irradiance "
+         "(the path tracer has no delta lights)")
+    return Sun(direction=tuple(-np.asarray(travel, float)), angular_radius=DIRECTIONAL_RADIUS,
+               radiance=tuple(e / disc for e in irradiance))
+
+
+def point_light(node: ET.Element, diagonal: float) -> tuple[np.ndarray, float, tuple]:
+    """Mitsuba's ``point`` emitter as (centre, radius, radiance) of an emitting sphere.
+
+    The sphere's radius is :data:`POINT_RADIUS` times the scene's ``diagonal``; radiance
+    ``I / (pi r^2)`` makes its intensity (the sphere's projected area ``pi r^2`` times that
+    radiance) Mitsuba's ``intensity`` I in every direction.
+    """
+    intensity = get_color(node, "intensity", (1.0, 1.0, 1.0), illuminant=True)
+    position = find(node, "position")
+    centre = vector(position) if position is not None else transform(find(node, "toWorld"))[:3, 3]
+    radius = POINT_RADIUS * max(diagonal, 1e-6)
+    warn(f"point light approximated by an emitting sphere of radius {radius:.3g} of the same intensity (the path "
+         "tracer has no delta lights)")
+    return np.asarray(centre, float), radius, tuple(i / (np.pi * radius * radius) for i in intensity)
 
 
 def camera(node: ET.Element) -> tuple[CameraPath, tuple[int, int]]:

@@ -12,11 +12,14 @@ import numpy as np
 from harness import Material, Scene, SceneObject
 
 from .bsdfs import BsdfContext, describe, has_texture, is_glossy, material
-from .emitters_sensor import camera, environment_and_sun
-from .shapes import load_shape, to_polydata
+from .emitters_sensor import camera, environment_and_sun, point_light
+from .shapes import load_shape, sphere, to_polydata
 from .xmlscene import MitsubaWarning, get_color, parse, version, warn
 
 SKIPPED_QUIETLY = {"default", "integrator"}
+# Mitsuba's default BSDF of an emitting shape that names none (its reflectance 0, measured against Mitsuba 3:
+# docs/pathtracer.md), also the surface of the sphere standing for a point light
+BLACK_BSDF = {"type": "diffuse", "reflectance": 0.0}
 
 
 def find_scene_file(folder: Path) -> Path | None:
@@ -99,6 +102,7 @@ def _load(path: Path, name: str | None) -> Scene:
     environment = sun = cam = None
     film = (768, 576)
     cache: dict = {}
+    points = []
     for node in root:
         tag = node.tag
         if tag == "shape":
@@ -106,10 +110,10 @@ def _load(path: Path, name: str | None) -> Scene:
             if mesh is None or len(mesh.corners) == 0:
                 continue
             desc, label = _shape_bsdf(node, ctx)
-            if desc is None:
-                desc, label = default_bsdf, "default"
             emission = None
             emitter = node.find("emitter")
+            if desc is None:  # Mitsuba's default: diffuse 0.5, black on an emitter
+                desc, label = (default_bsdf, "default") if emitter is None else (BLACK_BSDF, "emitter-default")
             if emitter is not None:
                 if emitter.get("type") != "area":
                     warn(f"shape emitter {emitter.get('type')!r} treated as an area light")
@@ -117,6 +121,8 @@ def _load(path: Path, name: str | None) -> Scene:
             index = table.add(desc, label, emission)
             objects.append(SceneObject(node.get("id") or f"shape{len(objects)}", to_polydata(mesh, index),
                                        material=index))
+        elif tag == "emitter" and node.get("type") == "point":
+            points.append(node)
         elif tag == "emitter":
             env, s = environment_and_sun(node, folder)
             environment = env or environment
@@ -127,6 +133,14 @@ def _load(path: Path, name: str | None) -> Scene:
             continue
         else:
             warn(f"element <{tag}> is not supported and was skipped")
+    if points:
+        bounds = np.concatenate([np.asarray(o.mesh.points) for o in objects]) if objects else np.zeros((1, 3))
+        diagonal = float(np.linalg.norm(bounds.max(axis=0) - bounds.min(axis=0)))
+        for node in points:
+            centre, radius, radiance = point_light(node, diagonal)
+            index = table.add(BLACK_BSDF, "point-light", radiance)
+            objects.append(SceneObject(node.get("id") or f"point{len(objects)}",
+                                       to_polydata(sphere(centre, radius), index), material=index))
     if cam is None:
         warn("scene has no sensor; using a camera looking at the scene's bounds")
         cam = _default_camera(objects)
