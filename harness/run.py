@@ -14,6 +14,7 @@ results. This module wires them and owns the output folder:
 
 from __future__ import annotations
 
+import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +32,7 @@ from harness.nonfinite import apply_nonfinite_policy
 from harness.plan import Group, Plan
 from harness.references import reference_record
 from harness.renders import RenderStore
+from harness.report import outputs as kept
 from harness.results import write_table
 from harness.rows import combine, make_table
 from harness.tasks import JobTask
@@ -67,6 +69,7 @@ def run_plan(
     *,
     resume: bool = False,
     pictures: bool = False,
+    report_frames: bool = False,
     progress: bool = True,
     on_status: Callable[[str], None] | None = None,
 ) -> RunOutcome:
@@ -86,6 +89,9 @@ def run_plan(
         Keep stored jobs whose identity is unchanged.
     pictures : bool
         Write PNGs of each job's first output, the input and the reference.
+    report_frames : bool
+        Keep three frames of each job of the first seed, its input and reference, for the
+        report (:mod:`harness.report.outputs`).
     progress : bool
         Show a progress bar (frames) on standard error.
     on_status : callable, optional
@@ -100,7 +106,9 @@ def run_plan(
         clean_temporaries(out)
         if store.cache.enabled:
             clean_temporaries(store.cache.root)
-        return _Run(registry, plan, store, executor, out, resume, pictures, progress, on_status).execute()
+        run = _Run(registry, plan, store, executor, out, resume, pictures, progress, on_status)
+        run.report_frames = report_frames
+        return run.execute()
 
 
 class _Run:
@@ -111,10 +119,13 @@ class _Run:
         self.status = on_status or (lambda text: None)
         self.tables: dict[str, pd.DataFrame] = {}
         self.reused = self.removed = 0
+        self.report_frames = False
 
     def execute(self) -> RunOutcome:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         stored = self._prune()
+        if not self.resume:
+            shutil.rmtree(self.out / kept.FOLDER, ignore_errors=True)
         from tqdm.auto import tqdm
 
         total = sum(len(g.jobs) * g.frames for g in self.plan.groups)
@@ -176,7 +187,10 @@ class _Run:
             return
         key = make_key(group=[group.task, group.scene, group.renderer, group.spp, group.seed, sorted(group.channels),
                               group.frames, list(group.resolution), group.reference_spp, pending[0].scene_hash])
+        report = self._report_frames(group, inputs)
         keep = "first" if self.pictures else "none"
+        if report:
+            keep = report | {0} if self.pictures else report
         tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
         for index, outcome in self.executor.run(tasks, progress=bar.update):
             job = pending[index]
@@ -187,10 +201,25 @@ class _Run:
                 rows, outputs = job_error_rows(job, outcome.error, frame=min(outcome.progress, group.frames - 1)), {}
                 bar.update(max(group.frames - outcome.progress, 0))
             self._store(job.job_id, make_table(rows, self.plan.metric_names))
-            if 0 in outputs:
+            for t in report:
+                if t in outputs:
+                    kept.save(self.out, job.task, job.scene, kept.output_name(job), t, outputs[t])
+            if 0 in outputs and self.pictures:
                 preset = f"-{job.preset}" if job.preset else ""
                 write_pictures(self.out / "images" / job.scene, f"{job.filter}{preset}-{job.backend}-spp{job.spp}",
                                outputs[0], inputs.frames[0]["color"], f"input-spp{job.spp}", inputs.references[0])
+
+    def _report_frames(self, group: Group, inputs: GroupInputs) -> frozenset:
+        """The frames the report keeps of this group's jobs (none but for the first seed); stores its inputs."""
+        seeds = self.plan.settings.get("seeds") or [group.seed]
+        if not self.report_frames or group.seed != seeds[0]:
+            return frozenset()
+        frames = frozenset(kept.kept_frames(group.frames))
+        for t in frames:
+            kept.save(self.out, group.task, group.scene, f"input-spp{group.spp}", t, inputs.frames[t]["color"])
+            if inputs.references[t] is not None:
+                kept.save(self.out, group.task, group.scene, "reference", t, inputs.references[t])
+        return frames
 
     def _inputs(self, group: Group, adaptive: bool) -> GroupInputs:
         store = self.store
