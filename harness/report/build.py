@@ -194,6 +194,8 @@ def _pictures(run_dir, task, scene, frames, names, spp, out) -> list[str]:
     results = {k: v for k, v in results.items() if v is not None}
     windows = pictures.disagreement_crops(list(results.values()))
     base = f"{stored.safe_name(task)}-{stored.safe_name(scene)}"
+    shape = next(i.shape for i in (ref, noisy, *results.values()) if i is not None)
+    width = max(256, shape[1]) if shape[1] < 256 else None  # small scenes shown enlarged (pixelated)
     images = [("reference", ref), (f"noisy input, {spp} spp", noisy), *results.items()]
     html = [f"<h3>Frame {shown}: reference, input and every filter (crops where the filters disagree most)</h3>"]
     for k, (label, image) in enumerate(images):
@@ -201,24 +203,26 @@ def _pictures(run_dir, task, scene, frames, names, spp, out) -> list[str]:
             continue
         name = f"{base}-{k}.png"
         pictures.write_display(out / "img" / name, pictures.outline(image, windows) if k == 0 else image)
-        cells = [figure(f"img/{name}", label)]
+        cells = [figure(f"img/{name}", label, width=width)]
         for c, window in enumerate(windows):
             crop_name = f"{base}-{k}-crop{c}.png"
             pictures.write_display(out / "img" / crop_name, pictures.crop(image, window))
             cells.append(figure(f"img/{crop_name}", f"crop {c + 1}"))
         html.append("<div>" + "".join(cells) + "</div>")
     if ref is not None and results:
-        html.append("<h3>Per-pixel error: FLIP error map and relMSE (colour bar)</h3>")
-        vmax = max(float(np.percentile(pictures.relmse_map(v, ref), 99)) for v in results.values()) or 1.0
+        maps = {label: pictures.relmse_map(image, ref) for label, image in results.items()}
+        vmax = max(float(np.percentile(m, 99)) for m in maps.values()) or 1.0
+        plots.colour_bar(out / "img" / f"{base}-relmse-scale.png", vmax=vmax, label="relMSE (one scale for all)")
+        html.append("<h3>Per-pixel error: FLIP error map (magma, 0 to 1) and relMSE</h3>"
+                    + figure(f"img/{base}-relmse-scale.png", "relMSE colour bar"))
         for k, (label, image) in enumerate(results.items()):
             cells = []
             flip = pictures.flip_map(image, ref)
             if flip is not None:
                 pictures.write_encoded(out / "img" / f"{base}-flip{k}.png", flip)
-                cells.append(figure(f"img/{base}-flip{k}.png", f"{label}: FLIP"))
-            plots.heat_map(pictures.relmse_map(image, ref), out / "img" / f"{base}-relmse{k}.png",
-                           label="relMSE", vmax=vmax)
-            cells.append(figure(f"img/{base}-relmse{k}.png", f"{label}: relMSE", width=320))
+                cells.append(figure(f"img/{base}-flip{k}.png", f"{label}: FLIP", width=width))
+            pictures.write_encoded(out / "img" / f"{base}-relmse{k}.png", plots.colour_map(maps[label], vmax))
+            cells.append(figure(f"img/{base}-relmse{k}.png", f"{label}: relMSE", width=width))
             html.append("<div>" + "".join(cells) + "</div>")
     if len(frames) > 1:
         html.append(f"<h3>Frames {', '.join(map(str, frames))} side by side (the sequence at a glance)</h3>")

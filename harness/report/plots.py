@@ -47,7 +47,7 @@ def time_against_error(points: pd.DataFrame, path: Path, *, metric: str, higher_
         ax.legend(fontsize=7, loc="best")
     else:
         ax.text(0.5, 0.5, "no timed configuration", transform=ax.transAxes, ha="center")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.97, top=0.92, bottom=0.14)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
@@ -66,26 +66,34 @@ def over_frames(df: pd.DataFrame, path: Path, *, metric: str, title: str = "") -
     ax.set_title(title, fontsize=10)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7, loc="best", ncol=2)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.97, top=0.92, bottom=0.14)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
-def heat_map(values: np.ndarray, path: Path, *, label: str, vmax: float | None = None) -> Path:
-    """A per-pixel map with a colour bar (e.g. relMSE), as a PNG."""
+def colour_map(values: np.ndarray, vmax: float, cmap: str = "inferno") -> np.ndarray:
+    """Per-pixel values in [0, vmax] as display colours (H, W, 3) in [0, 1] (no figure: fast)."""
+    import matplotlib
+
+    scaled = np.clip(np.nan_to_num(np.asarray(values, np.float64) / (vmax or 1.0)), 0.0, 1.0)
+    return matplotlib.colormaps[cmap](scaled)[..., :3]
+
+
+def colour_bar(path: Path, *, vmax: float, label: str, cmap: str = "inferno") -> Path:
+    """A horizontal colour bar from 0 to ``vmax`` (the scale of the :func:`colour_map` images beside it)."""
     plt = _pyplot()
-    h, w = values.shape
-    fig, ax = plt.subplots(figsize=(max(3.0, 4.0 * w / max(h, 1)), 3.2), dpi=100)
-    image = ax.imshow(values, cmap="inferno", vmin=0.0, vmax=vmax if vmax else float(np.nanmax(values) or 1.0))
-    ax.set_axis_off()
-    fig.colorbar(image, ax=ax, label=label, fraction=0.046, pad=0.04)
-    fig.tight_layout()
+    import matplotlib
+
+    fig = plt.figure(figsize=(4.0, 0.75), dpi=100)
+    ax = fig.add_axes((0.05, 0.55, 0.9, 0.3))
+    fig.colorbar(matplotlib.cm.ScalarMappable(matplotlib.colors.Normalize(0.0, vmax or 1.0), cmap), cax=ax,
+                 orientation="horizontal", label=label)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
-__all__ = ["heat_map", "over_frames", "time_against_error"]
+__all__ = ["colour_bar", "colour_map", "over_frames", "time_against_error"]
