@@ -94,9 +94,12 @@ def _time_render(store, group, spp: int, channels, repeats: int, clock) -> list[
 
 
 def write_render_cost(table: pd.DataFrame, out_dir: str | Path) -> Path:
-    """Store the table as ``out_dir/render_cost.csv``."""
+    """Store the table as ``out_dir/render_cost.csv`` (an empty table removes a stored one: no stale costs)."""
     path = Path(out_dir) / FILE
-    table.to_csv(path, index=False)
+    if table.empty:
+        path.unlink(missing_ok=True)
+    else:
+        table.to_csv(path, index=False)
     return path
 
 

@@ -136,7 +136,8 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None
         interval, :mod:`harness.statistics`), ``vs_next`` (the paired test against the next
         entry on the ranking metric: ``better``, ``not significant`` or ``not resolved`` when
         the difference is below the references' noise floor, with the p-value), ``p_next``,
-        the real-resolution times (``ms_1280x720``, ``ms_1920x1080``), ``scenes`` and
+        the real-resolution times (``ms_1280x720``, ``ms_1920x1080``), ``timed_on`` (only when
+        the rows were timed on several machine setups: each entry's), ``scenes`` and
         ``cells`` (scene x seed x frame values of the ranking metric). ``attrs["rank_by"]``
         names the ranking metric.
     """
@@ -149,6 +150,7 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None
     higher = getattr(spec, "higher_is_better", False)
     floor_column = getattr(spec, "noise_floor", "")
     ok = ok.assign(entry=entry_labels(ok))
+    multiple_setups = len(timing_setups(df)) > 1
     boards = []
     for task, part in ok.groupby("task", sort=True):
         rows, cells = [], {}
@@ -162,6 +164,8 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None
                 cells[entry] = cells[entry].merge(_floor(g, floor_column), on=CELL_KEYS, how="left")
             for column in TIME_COLUMNS:
                 row[column] = g[column].median() if g[column].notna().any() else math.nan
+            if multiple_setups:  # rows timed on different machines: say which, entry by entry
+                row["timed_on"] = "; ".join(sorted(set(_setup_labels(g))))
             row["scenes"] = int(cells[entry]["scene"].nunique())
             row["cells"] = len(cells[entry])
             rows.append(row)
@@ -184,7 +188,7 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None
     for m in metrics:
         if m != rank_by:
             ordered += [m, f"{m}_lo", f"{m}_hi"]
-    out = out[ordered + [*TIME_COLUMNS, "scenes", "cells"]]
+    out = out[ordered + [*TIME_COLUMNS, *(["timed_on"] if multiple_setups else []), "scenes", "cells"]]
     out.attrs["rank_by"] = rank_by
     out.attrs["higher_is_better"] = higher
     return out
@@ -241,6 +245,8 @@ def board_table(board: pd.DataFrame, metrics=None, intervals: str = "all") -> pd
             out["vs next"] = board["vs_next"]
     for column in TIME_COLUMNS:
         out[column] = board[column].map(lambda v: _format_float(v, "{:.4g}"))
+    if "timed_on" in board:
+        out["timed_on"] = board["timed_on"]
     out["scenes"] = board["scenes"]
     out["cells"] = board["cells"]
     return out
@@ -252,6 +258,20 @@ def _with_interval(value, low, high) -> str:
     if not (np.isfinite(low) and np.isfinite(high)) or low == high:
         return f"{value:.4g}"
     return f"{value:.4g} [{low:.4g}, {high:.4g}]"
+
+
+def timing_setups(df: pd.DataFrame) -> list[str]:
+    """The distinct ``machine (N threads)`` that timed the ``ok`` rows of a table.
+
+    More than one means the table's times come from different machines (a cluster run): the
+    leaderboard then names each entry's in a ``timed_on`` column.
+    """
+    ok = df[df.status == "ok"]
+    return sorted(set(_setup_labels(ok))) if len(ok) else []
+
+
+def _setup_labels(df: pd.DataFrame) -> pd.Series:
+    return df["machine"].astype(str) + " (" + df["threads"].astype(str) + " threads)"
 
 
 def _format_float(v, floatfmt: str) -> str:

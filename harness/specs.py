@@ -89,6 +89,15 @@ class FilterSpec:
         each row and ``denoise-bench bench`` prints it as a per-stage breakdown.
     tasks : iterable of str
         Benchmark tasks the filter serves (:data:`TASKS`); ``("denoise",)`` by default.
+    convex : bool
+        True if every output value is a convex combination of input radiance (non-negative
+        weights summing to one): each output channel then lies within [min, max] of the input's
+        colour since the last ``reset()`` or camera cut, and ``denoise-bench stress`` checks it.
+    stress_exempt : mapping of str to str
+        Stress cases (:mod:`harness.stress.cases` names, or ``fnmatch`` patterns such as
+        ``"guide-normal-*"``) that do not apply to this filter, each with the measured reason.
+        They still run; a failure is reported as ``exempt`` and, in pytest, as a strict
+        expected failure.
     """
 
     name: str
@@ -106,6 +115,8 @@ class FilterSpec:
     trainer: Callable[..., Any] | None = None
     stage_timing: bool = False
     tasks: frozenset = frozenset({"denoise"})
+    convex: bool = False
+    stress_exempt: Mapping[str, str] = field(default_factory=dict)
     param_specs: Mapping[str, Param] = field(default_factory=dict, init=False, compare=False)
 
     def __post_init__(self):
@@ -122,6 +133,10 @@ class FilterSpec:
         object.__setattr__(self, "param_specs", _frozen_mapping(specs))
         object.__setattr__(self, "params", _frozen_mapping({k: p.default for k, p in specs.items()}))
         object.__setattr__(self, "xfail_checks", _frozen_mapping(self.xfail_checks))
+        object.__setattr__(self, "stress_exempt", _frozen_mapping(self.stress_exempt))
+        empty = sorted(k for k, v in self.stress_exempt.items() if not str(v).strip())
+        if empty:
+            raise ValueError(f"{owner}: stress_exempt needs a measured reason for each case, none given for {empty}")
         object.__setattr__(self, "presets", _frozen_mapping({k: _frozen_mapping(v) for k, v in self.presets.items()}))
         object.__setattr__(self, "tasks", _check_tasks(owner, self.tasks))
         for preset, values in self.presets.items():
@@ -166,6 +181,8 @@ class FilterSpec:
             "trainable": self.trainer is not None,
             "stage_timing": self.stage_timing,
             "tasks": sorted(self.tasks),
+            "convex": self.convex,
+            "stress_exempt": dict(self.stress_exempt),
         }
 
 
@@ -299,6 +316,9 @@ class SceneSpec:
         Whether the scene belongs to the built-in default suite of ``denoise-bench run``.
     tasks : iterable of str
         Benchmark tasks the scene is meant for (:data:`TASKS`).
+    channels : iterable of str, optional
+        The channels the scene can give where it limits its renderer (captured frames); None
+        means whatever the renderer provides. A filter needing another is skipped with a reason.
     """
 
     name: str
@@ -311,9 +331,12 @@ class SceneSpec:
     suite: bool = True
     description: str = ""
     tasks: frozenset = frozenset({"denoise"})
+    channels: frozenset | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "tags", frozenset(self.tags))
+        if self.channels is not None:
+            object.__setattr__(self, "channels", _check_channels(f"scene {self.name!r}", self.channels))
         object.__setattr__(self, "tasks", _check_tasks(f"scene {self.name!r}", self.tasks))
         object.__setattr__(self, "resolution", tuple(int(v) for v in self.resolution))
         if self.frames < 1:

@@ -1,9 +1,10 @@
-"""The ``denoise-bench`` command: argument parsing (:mod:`.parser`) and printing (:mod:`.commands`).
+"""The ``denoise-bench`` command: argument parsing (:mod:`.parser`) and printing (:mod:`.commands`,
+:mod:`.stress`).
 
-Sub-commands: ``run`` (the benchmark), ``plugins`` (what is registered), ``show`` (summary and
-leaderboard of a stored run), ``render`` (references into the cache), ``bench`` (per-frame
-timing of filters against peers) and ``train`` (learned filters). Nothing in the library imports
-this package.
+Sub-commands: ``run`` (the benchmark), ``stress`` (the numerical stress battery and fuzzing),
+``plugins`` (what is registered), ``show`` (summary and leaderboard of a stored run),
+``render`` (references into the cache), ``bench`` (per-frame timing of filters against peers)
+and ``train`` (learned filters). Nothing in the library imports this package.
 """
 
 from __future__ import annotations

@@ -11,7 +11,8 @@ import pandas as pd
 
 from harness.bench import DEFAULT_PEERS, bench_filters
 from harness.cache import Cache
-from harness.executors import make_executor
+from harness.cli.stress import cmd_stress, show_stress  # noqa: F401 (cmd_stress: the `stress` sub-command)
+from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
 from harness.manifest import read_manifest
@@ -29,7 +30,16 @@ from harness.references import reference_record
 from harness.render_cost import measure_render_cost, read_render_cost, write_render_cost
 from harness.renders import RenderStore, scene_selection
 from harness.report import write_report
-from harness.results import TIME_COLUMNS, board_table, format_table, leaderboard, read_results, summary, to_markdown
+from harness.results import (
+    TIME_COLUMNS,
+    board_table,
+    format_table,
+    leaderboard,
+    read_results,
+    summary,
+    timing_setups,
+    to_markdown,
+)
 from harness.run import run_plan
 from harness.specs import TASKS
 
@@ -53,9 +63,24 @@ def _cache(args) -> Cache:
     return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False))
 
 
+def _cluster_options(args) -> dict:
+    """``--scheduler``/``--workers`` as executor options, checked against ``--executor``."""
+    if args.executor != "dask":
+        if args.scheduler or args.workers:
+            raise ValueError("--scheduler and --workers need --executor dask")
+        return {}
+    if args.scheduler and args.workers:
+        raise ValueError("--workers sizes a local cluster; with --scheduler the cluster's own workers run")
+    return {"scheduler": args.scheduler, "workers": args.workers}
+
+
 def _executor(registry, args):
     plugins = PluginOptions(disable=list(args.disable))
-    return make_executor(args.executor, registry=registry, plugins=plugins, timeout=args.timeout)
+    options = {"registry": registry, "plugins": plugins, "timeout": getattr(args, "timeout", DEFAULT_TIMEOUT_S)}
+    executor = make_executor(args.executor, **options, **_cluster_options(args))
+    if hasattr(executor, "banner"):
+        print(executor.banner(), file=sys.stderr)
+    return executor
 
 
 def _progress(args) -> bool:
@@ -65,6 +90,7 @@ def _progress(args) -> bool:
 def cmd_run(registry, args) -> int:
     """Plan, run, store and summarise a benchmark."""
     tasks = list(TASKS) if args.task == "all" else [args.task]
+    _cluster_options(args)
     with FolderLock(check_out_dir(args.out)):
         return _run(registry, args, tasks)
 
@@ -98,7 +124,7 @@ def _run(registry, args, tasks) -> int:
           f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
-                           report_frames=args.report, progress=_progress(args))
+                           report_frames=args.report, save_outputs=args.save_outputs, progress=_progress(args))
     df = outcome.table
     if args.csv:
         df.to_csv(args.out / "results.csv", index=False)
@@ -109,11 +135,10 @@ def _run(registry, args, tasks) -> int:
         if outcome.removed:
             line += f", {outcome.removed} stored jobs of other settings removed"
     print(line)
-    if not args.no_render_cost and plan.settings.get("timing_resolutions"):
-        cost = measure_render_cost(store, plan)
-        if len(cost):
-            write_render_cost(cost, args.out)
-            print("renderer cost per frame: " + ", ".join(
+    cost = measure_render_cost(store, plan, resolutions=[] if args.no_render_cost else None)
+    write_render_cost(cost, args.out)
+    if len(cost):
+        print("renderer cost per frame: " + ", ".join(
                 f"{r.renderer} {r.spp} spp {r.width}x{r.height} {r.render_ms:.3g} ms" for r in cost.itertuples()))
     _print_summary(df, registry, args.rank_by)
     _print_time_against_error(df, registry, args, read_render_cost(args.out))
@@ -171,6 +196,10 @@ def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> No
         for task, part in _boards(board):
             print(f"\n{_board_title(task, part, df)}:")
             print(format_table(board_table(part, intervals="rank")))
+        setups = timing_setups(df)
+        if len(setups) > 1:
+            print(f"\nNote: rows were timed on {len(setups)} machine setups ({'; '.join(setups)}); compare times "
+                  "only between entries of the same setup (column timed_on)")
     skipped = df[df.status == "skipped"]
     if not skipped.empty:
         print("\nSkipped:")
@@ -205,6 +234,8 @@ def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
 
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
+    if (read_manifest(args.dir) or {}).get("kind") == "stress":
+        return show_stress(args)
     df = read_results(args.dir)
     if args.all:
         print(format_table(df))
@@ -275,34 +306,33 @@ def cmd_render(registry, args) -> int:
     """Render references of every selected scene frame into the cache, in resumable chunks."""
     from tqdm.auto import tqdm
 
+    _cluster_options(args)
     profile = get_profile(args.profile).with_overrides(resolution=args.resolution, frames=args.frames,
                                                        reference_spp=args.spp, reference_target=args.reference_target)
     store = RenderStore(registry, _cache(args), resolution=profile.resolution)
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
-    for spec in specs:
-        rname = args.renderer or choose_renderer(registry, spec, args.task)
-        if rname is None:
-            raise ValueError(f"no renderer serves task {args.task!r} for scene {spec.name!r} ({spec.kind})")
-        rspec = registry.get("renderer", rname)
-        if not rspec.references:
-            raise ValueError(f"renderer {rname!r} makes no references")
-        spp = rspec.reference_spp  # analytic references stay analytic unless --spp says otherwise
-        if args.spp is not None or (rspec.reference_spp and profile.reference_spp is not None):
-            spp = profile.reference_spp
-        frames = spec.frames if profile.frames is None else min(spec.frames, profile.frames)
-        width, height = store.resolution_of(spec)
-        target = profile.reference_target
-        what = f"{spp} spp" if not target else f"{target:g} median relative error, at most {spp} spp"
-        records = []
-        with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {what})", unit="spp",
-                  disable=not sys.stderr.isatty()) as bar:
-            for t in range(frames):
-                records.append(reference_record(store, spec.name, rname, t, spp=spp, target=target, chunk=args.chunk,
-                                                progress=bar.update))
-        done = ", ".join(f"{r.spp}/{r.error:.3g}" for r in records)
-        print(f"{spec.name}: {frames} reference frame(s) at {what}, {width}x{height}, in the cache (samples per "
-              f"pixel / median relative standard error of each: {done})")
+    work = [_what_to_render(registry, spec, args, profile) for spec in specs]
+    target = profile.reference_target
+    if args.executor == "dask":
+        return _render_on_cluster(registry, args, store, work, target)
+    for spec, rname, spp, frames in work:
+        with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {_reference_goal(spp, target)})",
+                  unit="spp", disable=not sys.stderr.isatty()) as bar:
+            records = [reference_record(store, spec.name, rname, t, spp=spp, target=target, chunk=args.chunk,
+                                        progress=bar.update) for t in range(frames)]
+        _print_references(store, spec, spp, target, records)
     return 0
+
+
+def _reference_goal(spp: int, target: float) -> str:
+    return f"{spp} spp" if not target else f"{target:g} median relative error, at most {spp} spp"
+
+
+def _print_references(store, spec, spp: int, target: float, records) -> None:
+    width, height = store.resolution_of(spec)
+    done = ", ".join(f"{r.spp}/{r.error:.3g}" for r in records)
+    print(f"{spec.name}: {len(records)} reference frame(s) at {_reference_goal(spp, target)}, {width}x{height}, in "
+          f"the cache (samples per pixel / median relative standard error of each: {done})")
 
 
 def cmd_profiles(registry, args) -> int:
@@ -323,6 +353,60 @@ def cmd_profiles(registry, args) -> int:
     print()
     for p in table:
         print(f"{p['name']}: {p['description']}")
+    return 0
+
+
+def cmd_export(registry, args) -> int:
+    """Write every selected scene as a capture folder (multi-layer EXR frames, references, sidecar)."""
+    from harness.export import export_scene
+
+    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
+    for spec in specs:
+        sidecar = export_scene(registry, store, spec, args.out / spec.name, task=args.task, renderer=args.renderer,
+                               frames=args.frames, spp=args.spp, seed=args.seed, reference_spp=args.reference_spp,
+                               half=args.half)
+        print(f"{spec.name}: written to {sidecar.parent} (open it with --scene-dir {sidecar.parent})")
+    return 0
+
+
+def _what_to_render(registry, spec, args, profile) -> tuple:
+    """(scene spec, renderer, reference spp, frames) of one scene of ``denoise-bench render``."""
+    rname = args.renderer or choose_renderer(registry, spec, args.task)
+    if rname is None:
+        raise ValueError(f"no renderer serves task {args.task!r} for scene {spec.name!r} ({spec.kind})")
+    rspec = registry.get("renderer", rname)
+    if not rspec.references:
+        raise ValueError(f"renderer {rname!r} makes no references")
+    spp = rspec.reference_spp  # analytic references stay analytic unless --spp says otherwise
+    if args.spp is not None or (rspec.reference_spp and profile.reference_spp is not None):
+        spp = profile.reference_spp
+    frames = spec.frames if profile.frames is None else min(spec.frames, profile.frames)
+    return spec, rname, spp, frames
+
+
+def _render_on_cluster(registry, args, store, work, target: float) -> int:
+    """Every chunk of every reference as a task; one progress bar over all of them."""
+    import threading
+
+    from tqdm.auto import tqdm
+
+    from harness.remote_renders import RemoteRenders
+
+    lock = threading.Lock()
+    total = sum(frames * max(spp, 1) for _, _, spp, frames in work)
+    with _executor(registry, args) as executor, RemoteRenders(store, executor, chunk=args.chunk) as renders, \
+            tqdm(total=total, desc=f"references ({args.chunk} spp per task)", unit="spp",
+                 disable=not sys.stderr.isatty()) as bar:
+        def tick(n: int) -> None:
+            with lock:
+                bar.update(n)
+
+        requests = [(spec, spp, [renders.reference_record(spec.name, rname, t, spp=spp, target=target,
+                                                          progress=tick) for t in range(frames)])
+                    for spec, rname, spp, frames in work]
+        for spec, spp, futures in requests:
+            _print_references(store, spec, spp, target, [future.result() for future in futures])
     return 0
 
 

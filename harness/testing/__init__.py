@@ -9,9 +9,18 @@ Example, in a third party's test file::
         plugin_check()
 
 Every check of :mod:`harness.testing.checks` for that kind becomes one test, with an id like
-``filter:my_filter[cpu]-check_constant_image``. With no arguments every registered plugin of
+``filter:my_filter[cpu]-check_constant_image``. Filters of the ``antialias`` task also get the
+checks of :mod:`harness.testing.antialias_checks`. With no arguments every registered plugin of
 every kind is checked (the project's own suite does this). The ``cuda`` backend is checked where
 ``numba.cuda`` can run (a GPU, or ``NUMBA_ENABLE_CUDASIM=1``) and ``cuda_checks`` is true.
+
+Filters also get the stress battery (:mod:`harness.stress.cases`): one test per case that
+applies, with an id like ``filter:my_filter[cpu]-stress:guide-normal-nan``, each run in a worker
+process so a crash fails the test rather than the session (``stress="all"`` adds the heavy
+4K and 1,000-frame cases; ``stress=None`` leaves the battery out). A check the filter declares
+in ``xfail_checks`` (by check name) or a case in ``stress_exempt`` runs as a strict expected
+failure with the declared reason; ``xfail`` adds expected failures by test id (for plugins
+whose spec you do not own).
 """
 
 from __future__ import annotations
@@ -20,8 +29,11 @@ import functools
 
 from harness.backends import cuda_available
 from harness.plugins import load_plugins
+from harness.stress.cases import exemption
+from harness.testing.antialias_checks import ANTIALIAS_CHECKS
 from harness.testing.checks import FILTER_CHECKS, METRIC_CHECKS, RENDERER_CHECKS, SCENE_CHECKS
 from harness.testing.frames import make_frame
+from harness.testing.stress import StressCheck, stress_checks
 
 _CHECKS = {"filter": FILTER_CHECKS, "metric": METRIC_CHECKS, "renderer": RENDERER_CHECKS, "scene": SCENE_CHECKS}
 
@@ -57,13 +69,21 @@ class PluginCheck:
     def __repr__(self) -> str:
         return self.id
 
+    def xfail_reason(self, spec) -> str | None:
+        """The reason the plugin declares for failing this check (None: it must pass)."""
+        reason = (getattr(spec, "xfail_checks", None) or {}).get(self.check.__name__)
+        if reason is None and isinstance(self.check, StressCheck):
+            reason = exemption(spec, self.check.case.name)
+        return reason
+
 
 def plugin_checks(
-    filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True
+    filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True, stress="light"
 ) -> list[PluginCheck]:
     """Every (plugin, backend, check) to run; ``None`` for a kind means all registered of that kind.
 
-    Passing only some kinds (e.g. ``filters=["mine"]``) checks only those.
+    Passing only some kinds (e.g. ``filters=["mine"]``) checks only those. ``stress`` chooses
+    the stress cases of filters: ``"light"`` (default), ``"all"`` or None.
     """
     reg = registry()
     chosen = {"filter": filters, "metric": metrics, "renderer": renderers, "scene": scenes}
@@ -78,23 +98,51 @@ def plugin_checks(
             backends = [None]
             if kind == "filter":
                 backends = [b for b in spec.backends if b == "cpu" or (cuda_checks and cuda_available())]
+            checks = list(_CHECKS[kind])
+            if kind == "filter" and "antialias" in spec.tasks:
+                checks += ANTIALIAS_CHECKS  # the anti-aliasing task's own checks
+            if kind == "filter":
+                checks += stress_checks(spec, stress)
             for backend in backends:
-                for check in _CHECKS[kind]:
+                for check in checks:
                     items.append(PluginCheck(kind, name, backend, check))
     return items
 
 
-def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True):
-    """A ``pytest.mark.parametrize`` over :func:`plugin_checks`, as the argument ``plugin_check``."""
+def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True,
+                            stress="light", xfail=None):
+    """A ``pytest.mark.parametrize`` over :func:`plugin_checks`, as the argument ``plugin_check``.
+
+    Parameters
+    ----------
+    filters, metrics, renderers, scenes : list of str, optional
+        Plugins to check (see :func:`plugin_checks`).
+    cuda_checks : bool
+        Check the ``cuda`` backend where ``numba.cuda`` can run.
+    stress : {"light", "all", None}
+        Which stress cases filters get.
+    xfail : mapping of str to str, optional
+        Test ids (``filter:NAME[cpu]-stress:CASE``) expected to fail, with the reason, on top
+        of what the plugins declare (ids of plugins that are not installed are ignored; a
+        misspelt id of a checked plugin is an error). Every expected failure is strict: one
+        that passes fails.
+    """
     import pytest
 
     reg = registry()
+    extra = dict(xfail or {})
+    items = plugin_checks(filters, metrics, renderers, scenes, cuda_checks, stress)
     params = []
-    for item in plugin_checks(filters, metrics, renderers, scenes, cuda_checks):
-        reason = getattr(reg.get(item.kind, item.name), "xfail_checks", {}).get(item.check.__name__)
+    for item in items:
+        reason = item.xfail_reason(reg.get(item.kind, item.name)) or extra.pop(item.id, None)
         marks = [pytest.mark.xfail(reason=reason, strict=True)] if reason else []
         params.append(pytest.param(item, id=item.id, marks=marks))
+    checked = {item.id[: -len(item.check.__name__)] for item in items}  # "kind:name[backend]-" of each plugin
+    unknown = sorted(i for i in extra if any(i.startswith(prefix) for prefix in checked))
+    if unknown:  # a checked plugin has no such test: a misspelt id (absent plugins are not an error)
+        raise ValueError(f"xfail names tests that do not exist: {unknown}")
     return pytest.mark.parametrize("plugin_check", params)
 
 
-__all__ = ["PluginCheck", "make_frame", "parametrize_with_checks", "plugin_checks", "registry"]
+__all__ = ["PluginCheck", "StressCheck", "make_frame", "parametrize_with_checks", "plugin_checks", "registry",
+           "stress_checks"]

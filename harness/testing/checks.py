@@ -12,6 +12,7 @@ import copy
 import numpy as np
 
 from harness.buffers import Frame, check_filter_output
+from harness.stress.frames import with_color
 from harness.testing.frames import make_frame
 
 SIZES = [(1, 1), (1, 7), (6, 1), (7, 5), (16, 12)]
@@ -92,7 +93,7 @@ def _extreme(spec, backend, make_color, label):
     for t in range(3 if spec.temporal else 1):
         base = _frame(spec, index=t)
         color = make_color(base["color"].copy(), np.random.default_rng(t))
-        frames.append(base.replace(color=color.astype(np.float32)))
+        frames.append(with_color(base, color.astype(np.float32)))  # direct/indirect follow the colour
     outs = _run(spec, backend, frames)  # check_filter_output rejects non-finite output
     for out in outs:
         assert np.isfinite(out).all(), f"filter {spec.name!r}: non-finite output for {label} input"

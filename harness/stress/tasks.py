@@ -1,0 +1,86 @@
+"""A stress case as an executor task: it runs in the worker, so a crash or a hang is one row."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from harness.executors.base import Outcome, Task, WorkerContext
+from harness.stress.cases import CASES, Sequence
+from harness.stress.check import CaseResult, run_case, run_sequence
+from harness.stress.frames import scene_frame
+
+#: (filter, backend, params) already warmed up in this process
+_WARM: set = set()
+
+
+@dataclass
+class StressTask(Task):
+    """Run one filter over one case of the battery, or over frames it carries (fuzzing, replay).
+
+    Attributes
+    ----------
+    filter, backend : str
+    params : dict
+        Filter parameters (checked by the caller).
+    case : str
+        A battery case (:data:`harness.stress.cases.CASES`) or, with ``frames``, a label.
+    frames : list of Frame, optional
+        Explicit frames (small: fuzzing examples and reproducers).
+    resets : tuple of int
+        With ``frames``: indices before which ``reset()`` is called.
+    flags : dict
+        With ``frames``: the properties that hold (``flat``, ``energy``, ``fresh``, ``rejects``).
+    """
+
+    filter: str
+    backend: str
+    params: dict
+    case: str
+    frames: list | None = None
+    resets: tuple = ()
+    flags: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        return f"{self.filter}/{self.backend} stress {self.case}"
+
+    def run(self, context: WorkerContext, shared) -> CaseResult:
+        spec = context.registry.get("filter", self.filter)
+        warm_up(spec, self.backend, self.params)
+        if self.frames is None:
+            return run_case(spec, self.backend, self.params, CASES[self.case], progress=context.progress)
+        sequence = Sequence.of(self.frames, self.resets)
+        return run_sequence(spec, self.backend, self.params, sequence, progress=context.progress, **self.flags)
+
+
+def warm_up(spec, backend: str, params: dict) -> None:
+    """Call a fresh filter once per process on a small ordinary frame, so case times exclude compilation.
+
+    Errors are ignored here: the case that follows meets them and reports them.
+    """
+    key = (spec.name, spec.version, backend, repr(sorted(params.items())))
+    if key in _WARM:
+        return
+    _WARM.add(key)
+    channels = spec.requires | spec.optional
+    try:
+        filt = spec.factory(backend=backend, **params)
+        filt.reset()
+        for t in range(2 if spec.temporal else 1):
+            filt(scene_frame(16, 12, channels, seed=t, index=t), sampler=None)
+    except (Exception, SystemExit):
+        pass
+
+
+def case_result(outcome: Outcome, label: str) -> CaseResult:
+    """The case result of an executor outcome; a worker's death or a hang becomes ``crash``/``timeout``."""
+    if outcome.ok:
+        return outcome.value
+    error = outcome.error.removeprefix(f"{label}: ")
+    if error.startswith("timed out: no progress"):
+        status = "timeout"
+    elif "the worker process" in error:
+        status = "crash"
+    else:
+        status = "error"
+    return CaseResult(status=status, message=error, frame=outcome.progress, calls=outcome.progress)
