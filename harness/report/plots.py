@@ -61,6 +61,9 @@ def over_frames(df: pd.DataFrame, path: Path, *, metric: str, title: str = "") -
     for entry, g in df.groupby("entry", sort=True):
         per_frame = g.groupby("frame")[metric].mean()
         ax.plot(per_frame.index, per_frame.to_numpy(), marker=".", label=entry)
+    from matplotlib.ticker import MaxNLocator
+
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_xlabel("frame")
     ax.set_ylabel(metric)
     ax.set_title(title, fontsize=10)
