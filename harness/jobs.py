@@ -96,7 +96,7 @@ def run_job(
     metrics: MetricPlan,
     *,
     renderer=None,
-    keep_outputs: str = "none",
+    keep_outputs: str | frozenset = "none",
     progress: Callable[[int], None] | None = None,
 ) -> JobResult:
     """Run one job over every frame of its group.
@@ -111,8 +111,8 @@ def run_job(
         Metric names to score (frame and sequence) and those skipped with their reason.
     renderer : object, optional
         The group's renderer, for filters that declare ``adaptive`` (its ``sampler``).
-    keep_outputs : {"none", "first", "all"}
-        Which outputs to return with the rows.
+    keep_outputs : {"none", "first", "all"} or collection of int
+        Which outputs to return with the rows (a collection: those frame indices).
     progress : callable, optional
         Called with 1 after each frame (and with the remaining count when the job ends early).
 
@@ -164,7 +164,8 @@ def run_job(
                 except Exception as exc:
                     notes.append(f"{name} failed: {short_error(exc, 120)}")
         outputs.append(out)
-        if keep_outputs == "all" or (keep_outputs == "first" and t == 0):
+        if keep_outputs == "all" or (keep_outputs == "first" and t == 0) or (
+                not isinstance(keep_outputs, str) and t in keep_outputs):
             kept[t] = out
         row = _row(job, inputs, t, frame, "ok", "", scores=scores, timing=timing, samples=samples,
                    notes="; ".join(notes))

@@ -15,6 +15,7 @@ renders once: the union of the channels its filters and metrics need.
 
 from __future__ import annotations
 
+import itertools
 import json
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
@@ -24,6 +25,7 @@ from harness.backends import cuda_available, resolve_backend
 from harness.cache import make_key, plain
 from harness.rows import timing_column
 from harness.specs import TASKS
+from harness.sweeps import grid_points
 
 #: renderers preferred for each (scene kind, task) when the user names none
 PREFERRED_RENDERERS = {
@@ -166,6 +168,16 @@ def filter_params(spec, preset: str | None, overrides: Mapping[str, Any]) -> tup
     return params, preset or ""
 
 
+def _configurations(spec, preset, overrides, grid) -> list[tuple[dict, str]]:
+    """Every configuration (params, preset) of a filter: one, or one per point of its sweep grid."""
+    out = []
+    for point in grid_points(spec.name, overrides, grid):
+        configuration = filter_params(spec, preset, point)
+        if configuration not in out:
+            out.append(configuration)
+    return out
+
+
 def check_choices(
     *, spp=(1,), seeds=(0,), frames=None, resolution=None, repeats=1, reference_spp=None, backends=("auto",)
 ) -> None:
@@ -215,6 +227,7 @@ def make_plan(
     emitters: str = "exclude",
     timing_resolutions: Sequence[tuple] = (),
     timing_scene: str | None = None,
+    grid: Mapping[str, Mapping[str, Sequence[Any]]] | None = None,
 ) -> Plan:
     """Build the plan of a run.
 
@@ -260,6 +273,9 @@ def make_plan(
         :func:`timing_group`'s group (see :mod:`harness.timing`).
     timing_scene : str, optional
         The scene those timings are taken on, where it serves the task.
+    grid : mapping filter -> {param: list of values}, optional
+        Parameter sweeps: each filter runs every configuration of the cartesian product of its
+        values (:func:`harness.sweeps.grid_points`), each configuration its own job.
 
     Returns
     -------
@@ -292,10 +308,12 @@ def make_plan(
         registry.get("renderer", renderer)
     filter_specs = [registry.get("filter", f) for f in filters]
     metric_specs = [registry.get("metric", m) for m in metrics]
-    for extra in set(params) | set(presets):
+    grid = dict(grid or {})
+    for extra in set(params) | set(presets) | set(grid):
         if extra not in filters:
             raise ValueError(f"parameters given for filter {extra!r}, which is not selected")
-    configured = {f.name: filter_params(f, presets.get(f.name), params.get(f.name, {})) for f in filter_specs}
+    configured = {f.name: _configurations(f, presets.get(f.name), params.get(f.name, {}), grid.get(f.name))
+                  for f in filter_specs}
     metric_ids = tuple((m.name, m.version) for m in metric_specs)
     plan = Plan(settings={
         "tasks": list(tasks), "renderer": renderer, "backends": list(backends), "spp": list(spp),
@@ -303,6 +321,7 @@ def make_plan(
         "reference_spp": reference_spp, "nonfinite": nonfinite, "filters": list(filters), "metrics": list(metrics),
         "sampled_reference_spp": sampled_reference_spp, "reference_target": reference_target, "emitters": emitters,
         "timing_resolutions": [list(r) for r in timing_resolutions], "timing_scene": timing_scene,
+        **({"grid": {f: {k: list(v) for k, v in g.items()} for f, g in grid.items()}} if grid else {}),
     })
     extra = {"reference_target": float(reference_target), "emitters": emitters}
 
@@ -386,8 +405,8 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
             for fspec in filter_specs:
                 if task not in fspec.tasks:
                     continue
-                fparams, preset = configured[fspec.name]
-                for backend in _backends_for(fspec, backends):
+                for backend, (fparams, preset) in itertools.product(_backends_for(fspec, backends),
+                                                                    configured[fspec.name]):
                     job = Job(task, scene_spec.name, rname or "", fspec.name, backend,
                               json.dumps(plain(fparams), sort_keys=True), preset, int(s), int(seed),
                               filter_version=fspec.version, **identity)

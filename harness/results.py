@@ -9,6 +9,7 @@ filters' times at real resolutions.
 from __future__ import annotations
 
 import io
+import json
 import math
 from pathlib import Path
 
@@ -71,14 +72,28 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def entry_labels(df: pd.DataFrame) -> pd.Series:
-    """A leaderboard entry name per row: ``filter[preset]/backend``, plus the parameters where one
-    filter ran with several, and ``@Nspp`` where the table has several spp."""
+    """A leaderboard entry name per row: ``filter[preset]/backend``, plus ``name=value`` of the
+    parameters that differ where one filter ran with several (a sweep), and ``@Nspp`` where the
+    table has several spp."""
     label = df["filter"] + df["preset"].map(lambda p: f"[{p}]" if p else "") + "/" + df["backend"]
-    several = df.groupby("filter")["params"].transform("nunique") > 1
-    label = label.where(~several, label + " " + df["params"])
+    for _, params in df.groupby("filter")["params"]:
+        if params.nunique() > 1:
+            label.loc[params.index] = label.loc[params.index] + " " + _varying(params)
     if df["spp"].nunique() > 1:
         label = label + df["spp"].map(lambda n: f" @{n}spp")
     return label
+
+
+def _varying(params: pd.Series) -> pd.Series:
+    """``name=value`` of the parameters whose values differ among ``params`` (canonical JSON strings)."""
+    parsed = {p: json.loads(p) for p in params.unique()}
+    keys = sorted({k for d in parsed.values() for k in d})
+    varying = [k for k in keys if len({json.dumps(d.get(k), sort_keys=True) for d in parsed.values()}) > 1]
+
+    def text(value) -> str:
+        return value if isinstance(value, str) else json.dumps(value, sort_keys=True)
+
+    return params.map(lambda p: " ".join(f"{k}={text(parsed[p].get(k))}" for k in varying))
 
 
 def rank_metric(metrics, rank_by: str | None = None) -> str:

@@ -20,6 +20,7 @@ of another and an interrupted run resumes as a local one does.
 
 from __future__ import annotations
 
+import shutil
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -41,6 +42,7 @@ from harness.plan import Group, Plan
 from harness.references import reference_record
 from harness.remote_renders import RemoteRenders
 from harness.renders import RenderStore
+from harness.report import outputs as kept
 from harness.results import write_table
 from harness.rows import combine, make_table
 from harness.tasks import JobTask
@@ -77,6 +79,7 @@ def run_plan(
     *,
     resume: bool = False,
     pictures: bool = False,
+    report_frames: bool = False,
     save_outputs: bool = False,
     progress: bool = True,
     on_status: Callable[[str], None] | None = None,
@@ -97,6 +100,9 @@ def run_plan(
         Keep stored jobs whose identity is unchanged.
     pictures : bool
         Write PNGs of each job's first output, the input and the reference.
+    report_frames : bool
+        Keep three frames of each job of the first seed, its input and reference, for the
+        report (:mod:`harness.report.outputs`).
     save_outputs : bool
         Write every output as a linear HDR OpenEXR file:
         ``DIR/outputs/<scene>/<filter>[-preset]-<backend>-spp<N>-seed<S>/<frame>.exr``.
@@ -114,8 +120,9 @@ def run_plan(
         clean_temporaries(out)
         if store.cache.enabled:
             clean_temporaries(store.cache.root)
-        return _Run(registry, plan, store, executor, out, resume, pictures, save_outputs, progress,
-                    on_status).execute()
+        run = _Run(registry, plan, store, executor, out, resume, pictures, save_outputs, progress, on_status)
+        run.report_frames = report_frames
+        return run.execute()
 
 
 class _Run:
@@ -126,6 +133,7 @@ class _Run:
         self.status = on_status or (lambda text: None)
         self.tables: dict[str, pd.DataFrame] = {}
         self.reused = self.removed = 0
+        self.report_frames = False
         self.concurrent = bool(getattr(executor, "concurrent", False))
         self.renders: RemoteRenders | None = None
         self._lock = threading.RLock()
@@ -134,6 +142,8 @@ class _Run:
     def execute(self) -> RunOutcome:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         stored = self._prune()
+        if not self.resume:
+            shutil.rmtree(self.out / kept.FOLDER, ignore_errors=True)
         from tqdm.auto import tqdm
 
         total = sum(len(g.jobs) * g.frames for g in self.plan.groups)
@@ -217,7 +227,10 @@ class _Run:
             return
         key = make_key(group=[group.task, group.scene, group.renderer, group.spp, group.seed, sorted(group.channels),
                               group.frames, list(group.resolution), group.reference_spp, pending[0].scene_hash])
+        report = self._report_frames(group, inputs)
         keep = "all" if self.save_outputs else ("first" if self.pictures else "none")
+        if report and not self.save_outputs:
+            keep = report | {0} if self.pictures else report
         tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
         for index, outcome in self.executor.run(tasks, progress=bar.update):
             if self._stopped.is_set():
@@ -230,6 +243,9 @@ class _Run:
                 rows, outputs = job_error_rows(job, outcome.error, frame=min(outcome.progress, group.frames - 1)), {}
                 bar.update(max(group.frames - outcome.progress, 0))
             self._store(job.job_id, make_table(rows, self.plan.metric_names))
+            for t in report:
+                if t in outputs:
+                    kept.save(self.out, job.task, job.scene, kept.output_name(job), t, outputs[t])
             preset = f"-{job.preset}" if job.preset else ""
             if self.pictures and 0 in outputs:
                 write_pictures(self.out / "images" / job.scene, f"{job.filter}{preset}-{job.backend}-spp{job.spp}",
@@ -239,6 +255,18 @@ class _Run:
                 folder = self.out / "outputs" / job.scene / name
                 for t, image in outputs.items():
                     write_exr(folder / f"{t:04d}.exr", image)
+
+    def _report_frames(self, group: Group, inputs: GroupInputs) -> frozenset:
+        """The frames the report keeps of this group's jobs (none but for the first seed); stores its inputs."""
+        seeds = self.plan.settings.get("seeds") or [group.seed]
+        if not self.report_frames or group.seed != seeds[0]:
+            return frozenset()
+        frames = frozenset(kept.kept_frames(group.frames))
+        for t in frames:
+            kept.save(self.out, group.task, group.scene, f"input-spp{group.spp}", t, inputs.frames[t]["color"])
+            if inputs.references[t] is not None:
+                kept.save(self.out, group.task, group.scene, "reference", t, inputs.references[t])
+        return frames
 
     def _inputs(self, group: Group, adaptive: bool) -> GroupInputs:
         store = self.store

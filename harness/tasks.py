@@ -23,14 +23,14 @@ class JobTask(Task):
     metrics : MetricPlan
     shared : Shared
         The group's :class:`harness.jobs.GroupInputs` (sent once per worker).
-    keep_outputs : {"none", "first", "all"}
-        Which outputs come back with the rows.
+    keep_outputs : {"none", "first", "all"} or frozenset of int
+        Which outputs come back with the rows (a set: those frame indices).
     """
 
     job: Job
     metrics: MetricPlan
     shared: Shared
-    keep_outputs: str = "none"
+    keep_outputs: str | frozenset = "none"
     timed = True
 
     @property

@@ -39,7 +39,8 @@ def test_planner_pairs_filters_scenes_and_renderers_by_task():
 
 def test_run_task_antialias_end_to_end(tmp_path):
     out = bench(["run", "--task", "antialias", "--scenes", "aa-fence,synthetic-edges", "--resolution", "32x18",
-                 "--frames", "3", "--reference-spp", "16", "--filters", ",".join(AA_FILTERS), "--repeats", "1",
+                 "--frames", "3", "--seeds", "0", "--reference-spp", "16", "--filters", ",".join(AA_FILTERS),
+                 "--repeats", "1",
                  "--executor", "inline", "--strict", "--quiet", "--out", tmp_path / "o", "--cache-dir",
                  tmp_path / "c"])
     assert "Leaderboard, task antialias" in out.stdout and "task denoise" not in out.stdout

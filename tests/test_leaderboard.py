@@ -72,7 +72,10 @@ def test_boards_are_per_task_and_entries_name_their_configuration():
     assert list(b[b.task == "antialias"].entry) == ["y/cpu", "x/cpu"]
     df = make_table(rows("x", 0.3) + [dict(r, params='{"k": 2}', spp=4) for r in rows("x", 0.2)])
     labels = set(entry_labels(df[df.status == "ok"]))
-    assert labels == {'x/cpu {} @1spp', 'x/cpu {"k": 2} @4spp'}
+    assert labels == {"x/cpu k=null @1spp", "x/cpu k=2 @4spp"}  # only the parameters that differ
+    sweep = make_table([dict(r, params=f'{{"a": {a}, "b": "s", "c": 1}}', job_id=f"j{a}") for a in (1, 2)
+                        for r in rows("x", 0.3)])
+    assert set(entry_labels(sweep[sweep.status == "ok"])) == {"x/cpu a=1", "x/cpu a=2"}
 
 
 def test_board_table_shows_intervals_and_the_verdict_next_to_the_ranking_metric():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections import defaultdict
 
 import pandas as pd
@@ -15,10 +16,20 @@ from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
 from harness.manifest import read_manifest
+from harness.pareto import (
+    DEFAULT_BUDGETS,
+    best_within,
+    configuration_points,
+    pareto_front,
+    resolution_label,
+    time_resolution,
+)
 from harness.plan import choose_renderer, make_plan
 from harness.profiles import PROFILES, get_profile
 from harness.references import reference_record
+from harness.render_cost import measure_render_cost, read_render_cost, write_render_cost
 from harness.renders import RenderStore, scene_selection
+from harness.report import write_report
 from harness.results import (
     TIME_COLUMNS,
     board_table,
@@ -37,6 +48,14 @@ def _grouped(pairs) -> dict:
     out = defaultdict(dict)
     for name, key, value in pairs:
         out[name][key] = value
+    return dict(out)
+
+
+def _grid(items) -> dict:
+    """``--grid`` values: filter -> {param: values}; a parameter given twice keeps its values in order."""
+    out = defaultdict(dict)
+    for name, key, values in items:
+        out[name][key] = list(dict.fromkeys([*out[name].get(key, []), *values]))
     return dict(out)
 
 
@@ -98,14 +117,14 @@ def _run(registry, args, tasks) -> int:
         presets=dict(args.preset), repeats=profile.repeats, reference_spp=args.reference_spp,
         nonfinite=args.nonfinite, sampled_reference_spp=profile.reference_spp,
         reference_target=profile.reference_target, emitters=args.emitters,
-        timing_resolutions=profile.timing, timing_scene=profile.timing_scene,
+        timing_resolutions=profile.timing, timing_scene=profile.timing_scene, grid=_grid(args.grid),
     )
     plan.settings["profile"] = {**profile.as_dict(), "name": args.profile}
     print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
           f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
-                           save_outputs=args.save_outputs, progress=_progress(args))
+                           report_frames=args.report, save_outputs=args.save_outputs, progress=_progress(args))
     df = outcome.table
     if args.csv:
         df.to_csv(args.out / "results.csv", index=False)
@@ -116,11 +135,55 @@ def _run(registry, args, tasks) -> int:
         if outcome.removed:
             line += f", {outcome.removed} stored jobs of other settings removed"
     print(line)
+    cost = measure_render_cost(store, plan, resolutions=[] if args.no_render_cost else None)
+    write_render_cost(cost, args.out)
+    if len(cost):
+        print("renderer cost per frame: " + ", ".join(
+                f"{r.renderer} {r.spp} spp {r.width}x{r.height} {r.render_ms:.3g} ms" for r in cost.itertuples()))
     _print_summary(df, registry, args.rank_by)
+    _print_time_against_error(df, registry, args, read_render_cost(args.out))
+    if args.report:
+        index = write_report(args.out, registry, metrics=args.plot_metrics, budgets=args.budget or DEFAULT_BUDGETS,
+                             rank_by=args.rank_by)
+        print(f"\nreport written to {index}")
     errors = int(df[df.status == "error"].job_id.nunique())
     if errors:
         print(f"\n{errors} job(s) with errors; see 'message' in {args.out / 'results.parquet'}")
     return 1 if (args.strict and errors) else 0
+
+
+def _print_time_against_error(df: pd.DataFrame, registry, args, render_cost) -> None:
+    """The Pareto front and the best configuration within each budget, per task (where timed at 1280x720)."""
+    ok = df[df.status == "ok"]
+    if ok.empty:
+        return
+    board = leaderboard(df, registry.metrics, args.rank_by)
+    metric = board.attrs.get("rank_by") if not board.empty else None
+    if metric is None:
+        return
+    higher = bool(getattr(registry.metrics.get(metric), "higher_is_better", False))
+    resolution = time_resolution(ok)
+    for task in sorted(set(ok.task)):
+        points = configuration_points(ok, metric, task, resolution=resolution, render_cost=render_cost)
+        if points.time_ms.notna().sum() == 0:
+            continue
+        rendered = "filter + render" if points.render_ms.notna().any() else "filter only"
+        shown = ["entry", "error", "time_ms", "filter_ms", "render_ms"]
+        print(f"\nPareto front, task {task}: {metric} against ms per frame at {resolution_label(resolution)} "
+              f"({rendered}):")
+        print(format_table(pareto_front(points, "time_ms", "error", higher)[shown]))
+        best = best_within(points, args.budget or DEFAULT_BUDGETS, "time_ms", "error", higher)
+        print(f"Best within a frame budget, task {task}:")
+        print(format_table(best[["budget_ms", *[c for c in shown if c in best]]]))
+
+
+def cmd_report(registry, args) -> int:
+    """Write the static HTML report of a stored run."""
+    started = time.perf_counter()
+    index = write_report(args.dir, registry, out=args.out, metrics=args.plot_metrics,
+                         budgets=args.budget or DEFAULT_BUDGETS, rank_by=args.rank_by)
+    print(f"report written to {index} in {time.perf_counter() - started:.1f} s")
+    return 0
 
 
 def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> None:

@@ -108,6 +108,33 @@ def param(value: str) -> tuple[str, str, object]:
     return name, field, parsed
 
 
+def grid(value: str) -> tuple[str, str, list]:
+    """``FILTER.NAME=V1,V2,...``: a swept parameter, each value JSON (a bare word is a string)."""
+    name, field, _ = param(value)
+    raw = value.split("=", 1)[1]
+    items = [v.strip() for v in raw.split(",")]
+    if not all(items):
+        raise argparse.ArgumentTypeError(f"must look like FILTER.NAME=V1,V2,... with no empty value, got {value!r}")
+    values = []
+    for item in items:
+        try:
+            values.append(json.loads(item))
+        except json.JSONDecodeError:
+            values.append(item)
+    return name, field, values
+
+
+def budgets(value: str) -> list[float]:
+    """Frame budgets in milliseconds, comma-separated, each finite and > 0."""
+    try:
+        items = [float(v) for v in value.split(",") if v.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be milliseconds separated by commas, got {value!r}") from None
+    if not items or not all(0 < v < float("inf") for v in items):
+        raise argparse.ArgumentTypeError(f"must be finite numbers of milliseconds > 0, got {value!r}")
+    return sorted(set(items))
+
+
 def preset(value: str) -> tuple[str, str]:
     """``FILTER=PRESET``."""
     name, _, chosen = value.partition("=")
@@ -176,6 +203,13 @@ def _add_profile(p: argparse.ArgumentParser) -> None:
 def _add_rank_by(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rank-by", default=None, metavar="METRIC",
                    help="the metric the leaderboard ranks by (default: display_rmse where scored)")
+
+
+def _add_report_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--budget", type=budgets, default=None, metavar="MS,...",
+                   help="frame budgets in ms at 1280x720 for 'best within budget' (default 16,33)")
+    p.add_argument("--plot-metrics", type=names, default=None, metavar="NAMES",
+                   help="error metrics of the time-against-error plots (default: the ranking metric)")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -255,6 +289,9 @@ def build_parser() -> Parser:
                      help="set a filter parameter (JSON value); repeatable")
     run.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET",
                      help="use a filter's named parameter preset; repeatable")
+    run.add_argument("--grid", type=grid, action="append", default=[], metavar="FILTER.NAME=V1,V2,...",
+                     help="sweep a filter parameter over values (JSON each); repeatable: every combination of a "
+                          "filter's values is a configuration, each its own job")
     run.add_argument("--repeats", type=integer(1), default=None,
                      help="timed calls per frame (default: the profile's)")
     run.add_argument("--out", type=out_dir, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
@@ -268,6 +305,12 @@ def build_parser() -> Parser:
     run.add_argument("--nonfinite", choices=["raise", "repair"], default="raise",
                      help="NaN/Inf in renderer output: fail the render (raise) or replace and count (repair)")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--report", action="store_true",
+                     help="keep the outputs of three frames per job (first seed) and write the HTML report to "
+                          "OUT/report/ at the end (see 'denoise-bench report')")
+    run.add_argument("--no-render-cost", action="store_true",
+                     help="do not time the renderer per spp at the timing resolution (equal-time analysis)")
+    _add_report_options(run)
     _add_executor(run)
     _add_common(run)
 
@@ -282,6 +325,13 @@ def build_parser() -> Parser:
     show.add_argument("--markdown", type=Path, default=None, metavar="FILE",
                       help="also write the summary and leaderboard as markdown to FILE")
     _add_common(show)
+
+    report = sub.add_parser("report", help="write a static HTML report of a stored run (DIR/report/index.html)")
+    report.add_argument("dir", type=Path)
+    report.add_argument("--out", type=out_dir, default=None, help="report folder (default DIR/report; replaced)")
+    _add_rank_by(report)
+    _add_report_options(report)
+    _add_common(report)
 
     profiles = sub.add_parser("profiles", help="list the run profiles (--profile) and their settings")
     profiles.add_argument("--format", choices=["table", "json"], default="table")
