@@ -341,6 +341,22 @@ def test_a_stress_run_is_stored_with_a_manifest_and_shown(tmp_path, capsys):
     assert "passthrough" in shown and "shape-1x1" in shown and "4 pass" in shown
 
 
+def test_warnings_of_a_case_are_notes_not_output(tmp_path, capfd):
+    class Squares(Copy):
+        def __call__(self, frame, sampler=None):
+            c = frame["color"]
+            return np.minimum(c * c, np.float32(1)).astype(np.float32)  # overflows (and warns) at 1e30
+
+    plugin = types.ModuleType("warning_plugin")
+    plugin.register_filters = hookimpl(lambda: [spec_of(Squares, name="squares")])
+    reg = load_plugins(extra=[plugin], entry_points=False)
+    out = run_stress(reg, InlineExecutor(reg), tmp_path / "s", make_targets(reg, ["squares"], ["cpu"]),
+                     cases=select_cases(["color-flat-huge", "shape-1x1"]))
+    notes = out.table.set_index("case").notes
+    assert notes["color-flat-huge"].startswith("1 warning(s): RuntimeWarning: overflow encountered in multiply")
+    assert notes["shape-1x1"] == "" and "RuntimeWarning" not in capfd.readouterr().err
+
+
 def test_rerun_commands_name_the_changed_parameters_or_the_reproducer(tmp_path):
     from harness.stress.run import rerun_command
     from harness.testing import registry
