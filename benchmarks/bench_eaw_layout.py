@@ -20,32 +20,33 @@ import numpy as np
 from numba import get_num_threads
 
 from harness import load_plugins
-from plugins.filters.eaw import cpu
-from plugins.filters.eaw.filter import frame_scales, frame_state
+from plugins.filters.eaw import cpu, layout
 from plugins.filters.eaw.params import EAWParams, b3_kernel
 
 
 def prepare(frame, params, stride, skip):
-    """Packed buffers, active runs and state for one frame."""
-    state = frame_state(frame)
-    if not skip:
-        state[:] = cpu.ACTIVE  # every pixel filtered (background too): timing only
-    color, normal, position = frame["color"], frame["normal"], frame["position"]
-    scale, origin, unit = frame_scales(color, position, frame_state(frame), params)
-    buf = cpu.Buffers(frame.height, frame.width, params.halo(), stride)
-    cpu.pack(color, normal, position, frame_state(frame), 1.0 / scale, origin, 1.0 / unit,
-             buf.halo, buf.stride, buf.color[0], buf.color[1], buf.guide)
-    return buf, (*cpu.active_runs(state), np.any(state != cpu.BACKGROUND, axis=1)), state
+    """Packed buffers (with their runs) and the pixel classes for one frame."""
+    buf = layout.Buffers(frame.height, frame.width, params.halo(), stride)
+    layout.prepare(frame, params, buf)
+    if not skip:  # every pixel filtered (the background too): timing only
+        buf.state[:] = layout.ACTIVE
+        buf.run_count[:] = 1
+        buf.runs[:, 0] = (0, frame.width)
+        buf.row_surface[:] = 1
+    return buf, buf.state
 
 
-def passes(buf, runs, coefficients, taps, color, out):
+def passes(buf, coefficients, taps, color, out):
     """All iterations, the last one writing ``out`` as the filter does."""
+    threads = get_num_threads()
+    ring, scratch = buf.thread_scratch(threads, coefficients.shape[0])
     src, dst = buf.color
     last = coefficients.shape[0] - 1
     for i in range(last + 1):
         a_c, a_n, a_x = (np.float32(v) for v in coefficients[i])
-        cpu.atrous_pass(src, dst, buf.guide, *runs, buf.halo, buf.stride, 2**i, a_c, a_n, a_x, taps,
-                        get_num_threads(), i == last, color, out, 1.0, 1.0)
+        cpu.atrous_pass(src, dst, buf.guide, buf.state, buf.runs, buf.run_count, buf.row_surface, buf.halo,
+                        buf.stride, 2**i, a_c, max(a_n, np.float32(layout.A_N_MIN)), a_x, taps, threads, ring,
+                        scratch, i == last, color, out, 1.0, 1.0)
         src, dst = dst, src
 
 
@@ -65,25 +66,25 @@ def main() -> None:
     taps, coefficients = b3_kernel(), params.coefficients()
     tight = w + 2 * halo
     variants = {
-        f"stride {cpu.padded_stride(w, halo)} (odd x 16, default), skip": (None, True),
+        f"stride {layout.padded_stride(w, halo)} (odd x 16, default), skip": (None, True),
         f"stride {tight} (no padding), skip": (tight, True),
         f"stride {tight + (-tight) % 512} (multiple of 2 KiB), skip": (tight + (-tight) % 512, True),
-        f"stride {cpu.padded_stride(w, halo)}, no skip": (None, False),
+        f"stride {layout.padded_stride(w, halo)}, no skip": (None, False),
     }
     prepared = {name: prepare(frame, params, *v) for name, v in variants.items()}
     color = frame["color"]
     out = color.copy()
-    for buf, runs, _ in prepared.values():
-        passes(buf, runs, coefficients, taps, color, out)  # compile / warm up
+    for buf, _ in prepared.values():
+        passes(buf, coefficients, taps, color, out)  # compile / warm up
     wall = {name: [] for name in variants}
     proc = {name: [] for name in variants}
     for _ in range(args.rounds):
-        for name, (buf, runs, _) in prepared.items():
+        for name, (buf, _) in prepared.items():
             t0, c0 = time.perf_counter(), time.process_time()
-            passes(buf, runs, coefficients, taps, color, out)
+            passes(buf, coefficients, taps, color, out)
             wall[name].append((time.perf_counter() - t0) * 1e3)
             proc[name].append((time.process_time() - c0) * 1e3)
-    active = np.mean(prepared[next(iter(prepared))][2] == cpu.ACTIVE)
+    active = np.mean(prepared[next(iter(prepared))][1] == layout.ACTIVE)
     print(f"{w}x{h}, {params.iterations} passes, {get_num_threads()} threads, active pixels {active:.1%}")
     print(f"{'variant':48s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
     for name in variants:

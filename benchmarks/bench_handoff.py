@@ -13,9 +13,8 @@ Usage::
 
     python benchmarks/bench_handoff.py --resolution 1280x720 --frames 4 --jobs 10 --filter eaw --rounds 3
 
-Measured on a 2-core AMD EPYC (Zen 5) VM, shared with other work, 2 Numba threads, 1280x720,
-synthetic-moving, 4 frames (12 channels, 61 MB of frames and references):
-see docs/architecture.md ("The worker hand-off") for the figures and their reading.
+The figures measured with that command, the machine and their reading are in
+docs/architecture.md ("The worker hand-off").
 """
 
 from __future__ import annotations

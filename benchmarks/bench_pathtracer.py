@@ -4,6 +4,20 @@ Usage::
 
     python benchmarks/bench_pathtracer.py [--width 1280] [--height 720] [--spp 1] [--max-depth 5]
                                           [--repeats 3] [--scenes atrium classroom] [--no-mitsuba]
+                                          [--baseline FOLDER]
+    python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
+
+``--baseline FOLDER``: FOLDER is a copy of the project at an earlier commit (``git archive REV |
+tar -x -C FOLDER``); its path tracer renders the scene as its own Mitsuba loader loads it, and its
+frames are timed too, alternating with ours and Mitsuba's frame by frame in this one process, so
+all three see the same machine load.
+
+``--ratios``: instead of timing, converged images of the third-party scenes (``--scenes``,
+default classroom, living-room, sponza) by both renderers, and the ratio harness / Mitsuba 3 of
+the mean of each region of a 4x4 grid (RGB averaged): median, minimum and maximum, and the
+ratio of the whole image. Mitsuba 3 gets the harness's lights where the harness approximates the
+scene's (sun/sky), ``diffuse`` for ``roughdiffuse`` and the harness's ``roughplastic`` for
+``phong`` (Mitsuba 3 has neither), so that the ratios measure the materials.
 
 For each scene: paths per second and milliseconds per ``spp``-sample frame (median of
 ``repeats`` timed frames after one warm-up frame; wall clock, ``time.perf_counter_ns``, plus the
@@ -26,6 +40,7 @@ import re
 import statistics
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numba
@@ -37,16 +52,19 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT.parent / "shared" / "scenes"
 
 
-def timed(fn, repeats: int) -> tuple[list[float], list[float]]:
-    """Wall and CPU milliseconds of ``repeats`` calls after one warm-up call."""
-    fn()
-    wall, cpu = [], []
-    for _ in range(repeats):
-        c0, t0 = time.process_time(), time.perf_counter_ns()
+def alternating(fns: dict, repeats: int) -> dict:
+    """Wall and CPU milliseconds of ``repeats`` calls of each function, after one warm-up call each;
+    the functions take turns, call by call."""
+    for fn in fns.values():
         fn()
-        wall.append((time.perf_counter_ns() - t0) / 1e6)
-        cpu.append((time.process_time() - c0) * 1e3)
-    return wall, cpu
+    out = {name: {"wall": [], "cpu": []} for name in fns}
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            c0, t0 = time.process_time(), time.perf_counter_ns()
+            fn()
+            out[name]["wall"].append((time.perf_counter_ns() - t0) / 1e6)
+            out[name]["cpu"].append((time.process_time() - c0) * 1e3)
+    return out
 
 
 def harness_scene(registry, name: str):
@@ -58,17 +76,36 @@ def harness_scene(registry, name: str):
     return None
 
 
-def bench_ours(scene, args) -> dict:
-    from plugins.renderers.pathtracer import PathTracer
-
-    renderer = PathTracer(max_depth=args.max_depth, rr_depth=args.rr_depth)
+def frame_of(renderer_class, scene, args):
+    """A function rendering one complete frame (primary rays and first hits included)."""
+    renderer = renderer_class(max_depth=args.max_depth, rr_depth=args.rr_depth)
     size = (args.width, args.height)
 
     def frame():
-        renderer._setups.clear()  # a complete frame: primary rays and first hits included
+        renderer._setups.clear()
         renderer.render(scene, 0, spp=args.spp, seed=0, resolution=size)
 
-    return dict(zip(("wall", "cpu"), timed(frame, args.repeats)))
+    return frame
+
+
+def _import_copy(folder: Path, name: str):
+    """The package in ``folder`` imported as ``name`` (its relative imports stay inside the copy)."""
+    import importlib.util
+    import sys
+
+    spec = importlib.util.spec_from_file_location(name, folder / "__init__.py",
+                                                  submodule_search_locations=[str(folder)])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def baseline(root: Path):
+    """(``PathTracer`` class, Mitsuba ``load`` function) of an earlier copy of the project at ``root``."""
+    tracer = _import_copy(root / "plugins" / "renderers" / "pathtracer", "baseline_pathtracer")
+    loader = _import_copy(root / "plugins" / "scenes" / "mitsuba", "baseline_mitsuba")
+    return tracer.PathTracer, loader.load
 
 
 def _camel(name: str) -> str:
@@ -87,6 +124,16 @@ def _sky_map(env, path: Path, height: int = 64) -> None:
     mi.Bitmap(img).write(str(path))
 
 
+def _phong_as_roughplastic(match) -> str:
+    """The roughplastic that the harness's loader renders for a ``phong`` element."""
+    body = match.group(1)
+    exponent = re.search(r'name="exponent" value="([^"]+)"', body)
+    alpha = math.sqrt(2.0 / (float(exponent.group(1)) + 2.0)) if exponent else math.sqrt(2.0 / 32.0)
+    body = re.sub(r'\s*<float name="exponent"[^>]*/>', "", body)
+    return (f'<bsdf type="roughplastic"{body}<float name="alpha" value="{alpha}"/>'
+            '<string name="distribution" value="beckmann"/></bsdf>')
+
+
 def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     """Load a Mitsuba 0.6 scene into Mitsuba 3 with our path settings and the harness's lights."""
     import mitsuba as mi
@@ -100,6 +147,8 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     xml = re.sub(r'<integer name="width" value="\d+"\s*/>', f'<integer name="width" value="{args.width}"/>', xml)
     xml = re.sub(r'<integer name="height" value="\d+"\s*/>', f'<integer name="height" value="{args.height}"/>', xml)
     xml = xml.replace('"trilinear"', '"bilinear"')
+    xml = xml.replace('<bsdf type="roughdiffuse"', '<bsdf type="diffuse"')
+    xml = re.sub(r'<bsdf type="phong"(.*?)</bsdf>', _phong_as_roughplastic, xml, flags=re.S)
     lights = []
     if scene.sun is not None:
         solid = 2 * math.pi * (1 - math.cos(math.radians(scene.sun.angular_radius)))
@@ -125,31 +174,67 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     raise RuntimeError("could not load the scene into Mitsuba 3")
 
 
-def bench_mitsuba(folder: Path, scene, args) -> dict:
+def mitsuba_frame(folder: Path, scene, args, tmp: Path):
+    """A function rendering one frame of the scene with Mitsuba 3 ``scalar_rgb`` (returns the image)."""
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
-    with tempfile.TemporaryDirectory() as tmp:
-        mscene = mitsuba_scene(folder, scene, args, Path(tmp))
-        return dict(zip(("wall", "cpu"), timed(lambda: mi.render(mscene, spp=args.spp, seed=0), args.repeats)))
+    mscene = mitsuba_scene(folder, scene, args, tmp)
+    return lambda: np.asarray(mi.render(mscene, spp=args.spp, seed=0), np.float64)[..., :3]
+
+
+def region_means(image: np.ndarray, grid: int = 4) -> np.ndarray:
+    """Mean of each region of a grid x grid partition (RGB averaged); rows and columns split evenly."""
+    h, w = image.shape[:2]
+    rows = np.array_split(np.arange(h), grid)
+    cols = np.array_split(np.arange(w), grid)
+    return np.array([[image[np.ix_(r, c)].mean() for c in cols] for r in rows])
+
+
+def ratios(registry, args) -> None:
+    """Region-mean ratios harness / Mitsuba 3 of converged images (see the module docstring)."""
+    from plugins.renderers.pathtracer import PathTracer
+
+    size = (args.width, args.height)
+    print(f"{args.width}x{args.height}, {args.spp} spp, max_depth {args.max_depth}; 4x4 regions, harness / Mitsuba 3")
+    for name in args.scenes:
+        folder = SCENES / name
+        scene = harness_scene(registry, name)
+        if scene is None or not (folder / "scene.xml").is_file():
+            print(f"skipping {name!r}: no scene folder {folder}")
+            continue
+        ours = PathTracer(max_depth=args.max_depth, rr_depth=args.rr_depth).reference(scene, 0, spp=args.spp,
+                                                                                     resolution=size)
+        with tempfile.TemporaryDirectory() as tmp:
+            theirs = mitsuba_frame(folder, scene, args, Path(tmp))()
+        r = region_means(ours.astype(np.float64)) / np.maximum(region_means(theirs), 1e-12)
+        whole = ours.mean(axis=(0, 1)) / np.maximum(theirs.mean(axis=(0, 1)), 1e-12)
+        print(f"{name:<12} median {np.median(r):.3f}  min {r.min():.3f}  max {r.max():.3f}  "
+              f"whole image (r, g, b) {whole[0]:.3f} {whole[1]:.3f} {whole[2]:.3f}", flush=True)
+        print("  regions (rows top to bottom):", "; ".join(" ".join(f"{v:.2f}" for v in row) for row in r))
 
 
 def report(rows: list[dict], args) -> None:
     paths = args.width * args.height * args.spp
     print(f"\n{args.width}x{args.height}, {args.spp} spp, max_depth {args.max_depth}, rr_depth {args.rr_depth}, "
-          f"{os.cpu_count()} CPUs, {numba.get_num_threads()} Numba threads; median of {args.repeats}")
-    print(f"{'renderer':<12} {'scene':<11} {'ms/frame':>10} {'Mpaths/s':>9} {'CPU ms':>9} {'Mpaths/CPU-s':>13}")
+          f"{os.cpu_count()} CPUs, {numba.get_num_threads()} Numba threads; median [min-max] of {args.repeats}")
+    print(f"{'renderer':<12} {'scene':<11} {'ms/frame':>22} {'Mpaths/s':>9} {'CPU ms':>9} {'Mpaths/CPU-s':>13}")
     for r in rows:
         wall, cpu = statistics.median(r["wall"]), statistics.median(r["cpu"])
-        print(f"{r['renderer']:<12} {r['scene']:<11} {wall:>10.1f} {paths / wall / 1e3:>9.3f} {cpu:>9.1f} "
+        spread = f"{wall:.0f} [{min(r['wall']):.0f}-{max(r['wall']):.0f}]"
+        print(f"{r['renderer']:<12} {r['scene']:<11} {spread:>22} {paths / wall / 1e3:>9.3f} {cpu:>9.1f} "
               f"{paths / cpu / 1e3:>13.3f}")
-    ours = {r["scene"]: r for r in rows if r["renderer"] == "pathtracer"}
     for r in rows:
-        if r["renderer"] == "mitsuba3" and r["scene"] in ours:
-            mine = ours[r["scene"]]
-            print(f"pathtracer / mitsuba3 paths per second on {r['scene']}: "
-                  f"{statistics.median(r['wall']) / statistics.median(mine['wall']):.2f} (wall), "
-                  f"{statistics.median(r['cpu']) / statistics.median(mine['cpu']):.2f} (CPU time)")
+        if r["renderer"] != "mitsuba3":
+            continue
+        for mine in (x for x in rows if x["scene"] == r["scene"] and x["renderer"] != "mitsuba3"):
+            per = [m / o for m, o in zip(r["wall"], mine["wall"])]
+            per_cpu = [m / o for m, o in zip(r["cpu"], mine["cpu"])]
+            print(f"{mine['renderer']} / mitsuba3 paths per second on {r['scene']}: "
+                  f"{statistics.median(r['wall']) / statistics.median(mine['wall']):.2f} (wall; frame pairs "
+                  f"{min(per):.2f}-{max(per):.2f}), "
+                  f"{statistics.median(r['cpu']) / statistics.median(mine['cpu']):.2f} (CPU time; "
+                  f"{min(per_cpu):.2f}-{max(per_cpu):.2f})")
 
 
 def main() -> None:
@@ -160,21 +245,39 @@ def main() -> None:
     parser.add_argument("--max-depth", type=int, default=5)
     parser.add_argument("--rr-depth", type=int, default=5)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--scenes", nargs="+", default=["atrium", "classroom"])
+    parser.add_argument("--scenes", nargs="+", default=None)
     parser.add_argument("--no-mitsuba", action="store_true")
+    parser.add_argument("--baseline", type=Path, default=None, help="folder with a copy of an earlier pathtracer")
+    parser.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
     args = parser.parse_args()
     registry = load_plugins()
+    if args.ratios:
+        args.scenes = args.scenes or ["classroom", "living-room", "sponza"]
+        ratios(registry, args)
+        return
+    from plugins.renderers.pathtracer import PathTracer
+
+    old = baseline(args.baseline.resolve()) if args.baseline is not None else None
     rows = []
-    for name in args.scenes:
+    for name in args.scenes or ["atrium", "classroom"]:
         scene = harness_scene(registry, name)
         if scene is None:
             print(f"skipping {name!r}: neither a registered scene nor a folder {SCENES / name}")
             continue
         print(f"{name}: {len(scene.triangles(0).material)} triangles", flush=True)
-        rows.append({"renderer": "pathtracer", "scene": name, **bench_ours(scene, args)})
-        folder = SCENES / name
-        if not args.no_mitsuba and (folder / "scene.xml").is_file():
-            rows.append({"renderer": "mitsuba3", "scene": name, **bench_mitsuba(folder, scene, args)})
+        with tempfile.TemporaryDirectory() as tmp:
+            folder = SCENES / name
+            fns = {}
+            if old is not None:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    old_scene = old[1](folder) if (folder / "scene.xml").is_file() else scene
+                fns["baseline"] = frame_of(old[0], old_scene, args)
+            fns["pathtracer"] = frame_of(PathTracer, scene, args)
+            if not args.no_mitsuba and (folder / "scene.xml").is_file():
+                fns["mitsuba3"] = mitsuba_frame(folder, scene, args, Path(tmp))
+            for label, times in alternating(fns, args.repeats).items():
+                rows.append({"renderer": label, "scene": name, **times})
     report(rows, args)
 
 

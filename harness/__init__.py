@@ -12,6 +12,7 @@ from harness.buffers import (
     NonFiniteError,
     expected_shape,
 )
+from harness.exr import ExrError, read_channels, read_size, write_capture, write_channels, write_exr
 from harness.hookspecs import hookimpl
 from harness.images import encode_srgb, write_png
 from harness.numba_cache import configure_numba_cache
@@ -51,6 +52,7 @@ __all__ = [
     "ChannelError",
     "ChunkedRenderer",
     "Environment",
+    "ExrError",
     "Filter",
     "FilterSpec",
     "Frame",
@@ -81,7 +83,12 @@ __all__ = [
     "hookimpl",
     "load_backend",
     "load_plugins",
+    "read_channels",
+    "read_size",
     "read_texture",
     "srgb_to_linear",
+    "write_capture",
+    "write_channels",
+    "write_exr",
     "write_png",
 ]

@@ -29,6 +29,7 @@ PREFERRED_RENDERERS = {
     ("mesh", "denoise"): ("pathtracer",),
     ("mesh", "antialias"): ("raster",),
     ("procedural", "denoise"): ("synthetic",),
+    ("captured", "denoise"): ("captured",),
 }
 BACKEND_CHOICES = ("cpu", "cuda", "auto", "all")
 
@@ -330,9 +331,9 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
                         group = Group(task, scene_spec.name, rname, int(s), int(seed), frozenset(), n_frames,
                                       (width, height), ref_spp)
                     group.jobs.append(job)
-                    group.channels = group.channels | ((fspec.requires | fspec.optional) & rspec.provides)
+                    group.channels = group.channels | ((fspec.requires | fspec.optional) & _provides(scene_spec, rspec))
             if group is not None:
-                if "spp" in rspec.provides:
+                if "spp" in _provides(scene_spec, rspec):
                     group.channels = group.channels | {"spp"}
                 group.metrics = _metric_plan(metric_specs, rspec, n_frames)
                 plan.groups.append(group)
@@ -361,11 +362,21 @@ def _skip_reason(scene_spec, task, rname, rspec, fspec, backend) -> str:
     missing = sorted(fspec.requires - rspec.provides)
     if missing:
         return f"filter {fspec.name!r} needs channel(s) {missing} that renderer {rname!r} does not provide"
+    missing = sorted(fspec.requires - _provides(scene_spec, rspec))
+    if missing:
+        return f"filter {fspec.name!r} needs channel(s) {missing} that scene {scene_spec.name!r} does not have"
     if backend not in fspec.backends:
         return f"filter {fspec.name!r} has no {backend!r} backend (has {list(fspec.backends)})"
     if backend == "cuda" and not cuda_available():
         return "cuda backend: no GPU on this machine (numba.cuda.is_available() is False)"
     return ""
+
+
+def _provides(scene_spec, rspec) -> frozenset:
+    """Channels a group can have: the renderer's, limited by the scene's where it declares them."""
+    if scene_spec.channels is None:
+        return rspec.provides
+    return rspec.provides & (scene_spec.channels | {"color"})
 
 
 def _metric_plan(metric_specs, rspec, n_frames) -> MetricPlan:

@@ -119,7 +119,8 @@ class RenderStore:
         )
 
     # ----------------------------------------------------------------- frames
-    def frame(self, scene, renderer: str, frame_index: int, *, spp: int, seed: int, channels) -> Frame:
+    def frame(self, scene, renderer: str, frame_index: int, *, spp: int, seed: int, channels,
+              render: Callable | None = None) -> Frame:
         """The noisy frame, from the cache or rendered (and stored); validated.
 
         Parameters
@@ -130,6 +131,9 @@ class RenderStore:
         spp, seed : int
         channels : iterable of str
             Channels to render besides ``color``.
+        render : callable, optional
+            ``render(scene, frame_index, *, spp, seed, channels, resolution) -> Frame``: renders a
+            missing frame elsewhere (an executor); by default this process's renderer does.
         """
         scene = self.scene(scene) if isinstance(scene, str) else scene
         channels = frozenset(channels)
@@ -137,9 +141,8 @@ class RenderStore:
         stored = self.cache.load("frames", key)
         if stored is not None:
             return Frame.from_arrays(stored, owner=f"cached frame of renderer {renderer!r}")
-        frame = self.renderer(renderer).render(
-            scene, frame_index, spp=spp, seed=seed, channels=channels, resolution=self.resolution(scene)
-        )
+        draw = render if render is not None else self.renderer(renderer).render
+        frame = draw(scene, frame_index, spp=spp, seed=seed, channels=channels, resolution=self.resolution(scene))
         if not isinstance(frame, Frame):
             raise ChannelError(
                 f"renderer {renderer!r}: render() returned {type(frame).__name__}, expected harness.Frame"
@@ -287,7 +290,8 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
                 resolution=scene.resolution,
                 kind=scene.kind,
                 suite=False,
-                tasks=getattr(scene, "tasks", None) or {"denoise"},
+                tasks=scene.params.get("tasks") or {"denoise"},
+                channels=scene.channels,
             )
         )
     if not specs:

@@ -83,7 +83,27 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict) -> pd.DataFrame:
     summ["rank"] = pd.concat(ranks, axis=1).mean(axis=1) if ranks else math.nan
     cols = [m for m in metric_columns(df) if summ[m].notna().any()] + ["ms_median", "rank"]
     board = summ.groupby(["task", "entry"])[cols].mean().reset_index()
+    setups = timing_setups(df)
+    if len(setups) > 1:  # rows timed on different machines: say which, entry by entry
+        ok = df[df.status == "ok"].assign(entry=lambda d: d["filter"] + d["preset"].map(
+            lambda p: f"[{p}]" if p else "") + "/" + d["backend"], setup=lambda d: _setup_labels(d))
+        timed_on = ok.groupby(["task", "entry"])["setup"].agg(lambda v: "; ".join(sorted(set(v))))
+        board["timed_on"] = [timed_on.get((t, e), "") for t, e in zip(board["task"], board["entry"])]
     return board.sort_values(["task", "rank"], kind="stable").reset_index(drop=True)
+
+
+def timing_setups(df: pd.DataFrame) -> list[str]:
+    """The distinct ``machine (N threads)`` that timed the ``ok`` rows of a table.
+
+    More than one means the table's times come from different machines (a cluster run): the
+    leaderboard then names each entry's in a ``timed_on`` column.
+    """
+    ok = df[df.status == "ok"]
+    return sorted(set(_setup_labels(ok))) if len(ok) else []
+
+
+def _setup_labels(df: pd.DataFrame) -> pd.Series:
+    return df["machine"].astype(str) + " (" + df["threads"].astype(str) + " threads)"
 
 
 def _format_float(v, floatfmt: str) -> str:

@@ -10,11 +10,19 @@ results. This module wires them and owns the output folder:
   rest is computed; stored jobs that the plan does not include are removed, so the folder holds
   exactly one plan's results;
 * the manifest is written at the end however the run ends, and describes the stored table.
+
+With an executor that runs tasks of several callers at once (``executor.concurrent``: the
+``dask`` executor), every group runs in its own client thread: its frames and references are
+rendered as tasks (:mod:`harness.remote_renders`), its jobs are submitted as soon as its inputs
+are in, and each job's rows are stored as they arrive, so renders of one group overlap the jobs
+of another and an interrupted run resumes as a local one does.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,12 +31,14 @@ import pandas as pd
 from harness.cache import array_hash, clean_temporaries, make_key
 from harness.errors import short_error
 from harness.executors.base import Executor, Shared
+from harness.exr import write_exr
 from harness.images import write_pictures
 from harness.jobs import GroupInputs, job_error_rows, skipped_row
 from harness.lock import FolderLock, check_out_dir
 from harness.manifest import make_manifest, write_manifest
 from harness.nonfinite import apply_nonfinite_policy
 from harness.plan import Group, Plan
+from harness.remote_renders import RemoteRenders
 from harness.renders import RenderStore
 from harness.results import write_table
 from harness.rows import combine, make_table
@@ -65,6 +75,7 @@ def run_plan(
     *,
     resume: bool = False,
     pictures: bool = False,
+    save_outputs: bool = False,
     progress: bool = True,
     on_status: Callable[[str], None] | None = None,
 ) -> RunOutcome:
@@ -84,6 +95,9 @@ def run_plan(
         Keep stored jobs whose identity is unchanged.
     pictures : bool
         Write PNGs of each job's first output, the input and the reference.
+    save_outputs : bool
+        Write every output as a linear HDR OpenEXR file:
+        ``DIR/outputs/<scene>/<filter>[-preset]-<backend>-spp<N>-seed<S>/<frame>.exr``.
     progress : bool
         Show a progress bar (frames) on standard error.
     on_status : callable, optional
@@ -98,17 +112,22 @@ def run_plan(
         clean_temporaries(out)
         if store.cache.enabled:
             clean_temporaries(store.cache.root)
-        return _Run(registry, plan, store, executor, out, resume, pictures, progress, on_status).execute()
+        return _Run(registry, plan, store, executor, out, resume, pictures, save_outputs, progress,
+                    on_status).execute()
 
 
 class _Run:
-    def __init__(self, registry, plan, store, executor, out, resume, pictures, progress, on_status):
+    def __init__(self, registry, plan, store, executor, out, resume, pictures, save_outputs, progress, on_status):
         self.registry, self.plan, self.store, self.executor = registry, plan, store, executor
         self.out, self.jobs_dir = out, out / "jobs"
-        self.resume, self.pictures, self.progress = resume, pictures, progress
+        self.resume, self.pictures, self.save_outputs, self.progress = resume, pictures, save_outputs, progress
         self.status = on_status or (lambda text: None)
         self.tables: dict[str, pd.DataFrame] = {}
         self.reused = self.removed = 0
+        self.concurrent = bool(getattr(executor, "concurrent", False))
+        self.renders: RemoteRenders | None = None
+        self._lock = threading.RLock()
+        self._stopped = threading.Event()  # the run was interrupted: group threads store nothing more
 
     def execute(self) -> RunOutcome:
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
@@ -120,8 +139,11 @@ class _Run:
         try:
             for job, reason in self.plan.skipped:
                 self._store(job.job_id, make_table([skipped_row(job, reason)], self.plan.metric_names), final=False)
-            for group in self.plan.groups:
-                self._run_group(group, stored, bar)
+            if self.concurrent:
+                self._run_groups_concurrently(stored, _LockedBar(bar, self._lock))
+            else:
+                for group in self.plan.groups:
+                    self._run_group(group, stored, bar)
         finally:
             bar.close()
             table = combine(self.tables.values())
@@ -145,18 +167,37 @@ class _Run:
         return keep
 
     def _store(self, job_id: str, table: pd.DataFrame, final: bool = True) -> None:
-        write_table(table, self.jobs_dir / f"{job_id}.parquet")
-        self.tables[job_id] = table
-        if final:
-            write_table(combine(self.tables.values()), self.out / "results.parquet")
+        with self._lock:
+            if self._stopped.is_set():
+                return
+            write_table(table, self.jobs_dir / f"{job_id}.parquet")
+            self.tables[job_id] = table
+            if final:
+                write_table(combine(self.tables.values()), self.out / "results.parquet")
+
+    def _run_groups_concurrently(self, stored: dict, bar) -> None:
+        """Every group in its own thread; renders and jobs are tasks of the (concurrent) executor."""
+        groups = self.plan.groups
+        if not groups:
+            return
+        self.renders = RemoteRenders(self.store, self.executor)
+        pool = ThreadPoolExecutor(min(len(groups), 32), thread_name_prefix="harness-group")
+        try:
+            for future in [pool.submit(self._run_group, g, stored, bar) for g in groups]:
+                future.result()
+        finally:
+            self._stopped.set()
+            pool.shutdown(wait=False, cancel_futures=True)
+            self.renders.close()
 
     def _run_group(self, group: Group, stored: dict, bar) -> None:
         pending = []
         for job in group.jobs:
             table = _read(stored.get(job.job_id))
             if table is not None:
-                self.tables[job.job_id] = table
-                self.reused += 1
+                with self._lock:
+                    self.tables[job.job_id] = table
+                    self.reused += 1
                 bar.update(group.frames)
             else:
                 pending.append(job)
@@ -174,9 +215,11 @@ class _Run:
             return
         key = make_key(group=[group.task, group.scene, group.renderer, group.spp, group.seed, sorted(group.channels),
                               group.frames, list(group.resolution), group.reference_spp, pending[0].scene_hash])
-        keep = "first" if self.pictures else "none"
+        keep = "all" if self.save_outputs else ("first" if self.pictures else "none")
         tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
         for index, outcome in self.executor.run(tasks, progress=bar.update):
+            if self._stopped.is_set():
+                return
             job = pending[index]
             bar.set_description(tasks[min(index + 1, len(tasks) - 1)].label)
             if outcome.ok:
@@ -185,10 +228,15 @@ class _Run:
                 rows, outputs = job_error_rows(job, outcome.error, frame=min(outcome.progress, group.frames - 1)), {}
                 bar.update(max(group.frames - outcome.progress, 0))
             self._store(job.job_id, make_table(rows, self.plan.metric_names))
-            if 0 in outputs:
-                preset = f"-{job.preset}" if job.preset else ""
+            preset = f"-{job.preset}" if job.preset else ""
+            if self.pictures and 0 in outputs:
                 write_pictures(self.out / "images" / job.scene, f"{job.filter}{preset}-{job.backend}-spp{job.spp}",
                                outputs[0], inputs.frames[0]["color"], f"input-spp{job.spp}", inputs.references[0])
+            if self.save_outputs:
+                name = f"{job.filter}{preset}-{job.backend}-spp{job.spp}-seed{job.seed}"
+                folder = self.out / "outputs" / job.scene / name
+                for t, image in outputs.items():
+                    write_exr(folder / f"{t:04d}.exr", image)
 
     def _inputs(self, group: Group, adaptive: bool) -> GroupInputs:
         store = self.store
@@ -198,15 +246,39 @@ class _Run:
         inputs = GroupInputs([], [], [], [], channels=group.channels,
                              scene=scene if adaptive and rspec.adaptive else None,
                              renderer_settings=store.factory_settings(group.renderer))
+        if self.concurrent:  # every frame and reference requested at once, rendered on workers
+            frames = [self.renders.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed,
+                                         channels=group.channels) for t in range(group.frames)]
+            refs = [self.renders.reference(scene, group.renderer, t, spp=group.reference_spp)
+                    if rspec.references else None for t in range(group.frames)]
         for t in range(group.frames):
-            frame = store.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed, channels=group.channels)
+            if self.concurrent:
+                frame, ref = frames[t].result(), refs[t].result() if refs[t] is not None else None
+            else:
+                frame = store.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed,
+                                    channels=group.channels)
+                ref = store.reference(scene, group.renderer, t, spp=group.reference_spp) if rspec.references else None
             frame, count = apply_nonfinite_policy(frame, nonfinite, owner=f"renderer {group.renderer!r}")
-            ref = store.reference(scene, group.renderer, t, spp=group.reference_spp) if rspec.references else None
             inputs.frames.append(frame)
             inputs.repaired.append(count)
             inputs.references.append(ref)
             inputs.reference_hashes.append(array_hash(ref) if ref is not None else "")
         return inputs
+
+
+class _LockedBar:
+    """A progress bar updated from several threads."""
+
+    def __init__(self, bar, lock):
+        self.bar, self.lock = bar, lock
+
+    def update(self, n: int = 1) -> None:
+        with self.lock:
+            self.bar.update(n)
+
+    def set_description(self, text: str) -> None:
+        with self.lock:
+            self.bar.set_description(text)
 
 
 def _read(path: Path | None) -> pd.DataFrame | None:

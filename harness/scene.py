@@ -1,8 +1,9 @@
 """The scene model shared by scene plugins and renderers.
 
-A :class:`Scene` is either ``procedural`` (a named pattern with parameters, understood by the
-``synthetic`` renderer) or ``mesh`` (PyVista meshes with materials, lights and a camera path,
-understood by the raster renderer and the path tracer). Everything a renderer needs is in the
+A :class:`Scene` is ``procedural`` (a named pattern with parameters, understood by the
+``synthetic`` renderer), ``mesh`` (PyVista meshes with materials, lights and a camera path,
+understood by the raster renderer and the path tracer) or ``captured`` (frames another renderer
+wrote, read by the ``captured`` renderer). Everything a renderer needs is in the
 scene, and :meth:`Scene.content_hash` covers all of it, so cached renders miss when any input
 changes.
 
@@ -348,6 +349,10 @@ class TriangleSoup:
     object_id: np.ndarray
 
 
+#: what a scene can be
+SCENE_KINDS = ("mesh", "procedural", "captured")
+
+
 @dataclass
 class Scene:
     """Everything a renderer needs for a sequence of frames.
@@ -355,7 +360,7 @@ class Scene:
     Attributes
     ----------
     name : str
-    kind : {"mesh", "procedural"}
+    kind : {"mesh", "procedural", "captured"}
     frame_count : int
     resolution : (int, int)
         Default (width, height).
@@ -371,6 +376,9 @@ class Scene:
         Path length limit suggested for this scene.
     source : str
         Where the scene came from (plugin name or folder), for reports.
+    channels : frozenset of str, optional
+        The channels this scene can give, where it limits what its renderer makes (a capture
+        holds only some AOVs); None means whatever the renderer provides.
     """
 
     name: str
@@ -386,10 +394,13 @@ class Scene:
     params: Mapping[str, Any] = field(default_factory=dict)
     max_depth: int = 5
     source: str = ""
+    channels: frozenset | None = None
 
     def __post_init__(self):
-        if self.kind not in ("mesh", "procedural"):
-            raise ValueError(f"scene {self.name!r}: kind must be 'mesh' or 'procedural', got {self.kind!r}")
+        if self.kind not in SCENE_KINDS:
+            raise ValueError(f"scene {self.name!r}: kind must be one of {SCENE_KINDS}, got {self.kind!r}")
+        if self.channels is not None:
+            self.channels = frozenset(self.channels)
         self.tags = frozenset(self.tags)
         self.resolution = tuple(int(v) for v in self.resolution)
         self._hash: str | None = None

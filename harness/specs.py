@@ -297,6 +297,9 @@ class SceneSpec:
         Whether the scene belongs to the built-in default suite of ``denoise-bench run``.
     tasks : iterable of str
         Benchmark tasks the scene is meant for (:data:`TASKS`).
+    channels : iterable of str, optional
+        The channels the scene can give where it limits its renderer (captured frames); None
+        means whatever the renderer provides. A filter needing another is skipped with a reason.
     """
 
     name: str
@@ -309,9 +312,12 @@ class SceneSpec:
     suite: bool = True
     description: str = ""
     tasks: frozenset = frozenset({"denoise"})
+    channels: frozenset | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "tags", frozenset(self.tags))
+        if self.channels is not None:
+            object.__setattr__(self, "channels", _check_channels(f"scene {self.name!r}", self.channels))
         object.__setattr__(self, "tasks", _check_tasks(f"scene {self.name!r}", self.tasks))
         object.__setattr__(self, "resolution", tuple(int(v) for v in self.resolution))
         if self.frames < 1:

@@ -14,8 +14,8 @@ import pytest
 
 from harness import CHANNELS, Frame, FrameMeta, load_plugins
 from plugins.filters.eaw import make_filter
-from plugins.filters.eaw.cpu import padded_stride
 from plugins.filters.eaw.fastexp import A_MAX, fast_exp_array
+from plugins.filters.eaw.layout import padded_stride
 from plugins.filters.eaw.params import DEFAULTS, EAWParams
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -171,6 +171,15 @@ def test_cuda_simulator_matches_oracle():
             got = make_filter("cuda", **params)(t.frame_of(ch))
             err = t.rel_err(got, t.oracle(ch, **params))
             assert err < 1e-5, err
+        # bad input: a NaN normal, an infinite position, a colour of 3e38; CUDA equals the CPU
+        ch = t.scene_channels(11, 13, seed=4, sky_rows=2)
+        ch["normal"][4, 5, 0] = np.nan
+        ch["position"][6, 2, 2] = np.inf
+        ch["color"][7, 8] = 3e38
+        got = make_filter("cuda", iterations=3)(t.frame_of(ch))
+        want = make_filter("cpu", iterations=3)(t.frame_of(ch))
+        assert np.all(np.isfinite(got))
+        np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
         print("ok")
         """
     )
@@ -231,7 +240,7 @@ def test_input_unmodified_and_deterministic():
     a, b = f(frame), f(frame)
     assert np.array_equal(a, b)
     assert all(np.array_equal(frame[k], before[k]) for k in before)
-    assert set(f.stage_ms) == {"classify", "pack", "atrous"}
+    assert set(f.stage_ms) == {"prepare", "atrous"}
 
 
 @pytest.mark.parametrize("shape", [(1, 1), (1, 7), (9, 1), (3, 5), (33, 17)])
@@ -269,6 +278,35 @@ def test_extreme_values_stay_finite(kind, color_scale):
         base = make_filter("cpu", color_scale=color_scale)(frame_of(scene_channels(16, 20, seed=6, sky_rows=2)))
         factor = 1e30 if kind == "all_1e30" else 1e-30
         assert rel_err(out / np.float32(factor), base.astype(np.float64)) < 1e-5
+
+
+@pytest.mark.parametrize("channel,value", [("normal", np.nan), ("normal", np.inf), ("position", np.nan),
+                                           ("position", -np.inf)])
+def test_nonfinite_guide_makes_a_background_pixel(channel, value):
+    """A pixel with a NaN or infinite normal or position is background, exactly as a pixel with
+    a zero normal (the harness's convention): passed through, never a tap, outside the scales."""
+    ch = scene_channels(24, 30, seed=7, sky_rows=3)
+    bad = {k: v.copy() for k, v in ch.items()}
+    bad[channel][9, 11, 1] = value
+    zero = {k: v.copy() for k, v in ch.items()}
+    zero["normal"][9, 11] = 0.0
+    out = make_filter("cpu")(frame_of(bad))
+    assert np.array_equal(out, make_filter("cpu")(frame_of(zero)))
+    assert np.array_equal(out[9, 11], ch["color"][9, 11])
+
+
+def test_one_huge_colour_value_stays_local():
+    """A colour of 3e38 (finite) used to turn the whole image into NaN; now it is kept as it is
+    and its neighbours ignore it (its colour distance to them is beyond every weight)."""
+    ch = scene_channels(24, 30, seed=8, sky_rows=2)
+    base = make_filter("cpu")(frame_of(ch))
+    ch["color"][10, 12] = 3e38
+    out = make_filter("cpu")(frame_of(ch))
+    assert np.all(np.isfinite(out))
+    assert out[10, 12, 0] == np.float32(3e38)
+    far = np.ones(out.shape[:2], bool)
+    far[10 - 3:10 + 4, 12 - 3:12 + 4] = False  # the colour scale moved a little: compare loosely
+    assert rel_err(out[far], base[far].astype(np.float64)) < 0.2
 
 
 # ---------------------------------------------------------------- parameters and registration

@@ -13,11 +13,10 @@ import numpy as np
 import pytest
 
 from harness import CHANNELS, Frame, FrameMeta, load_plugins
+from plugins.filters.lbf import cpu as CPU
 from plugins.filters.lbf import features as FE
 from plugins.filters.lbf import kernels as K
 from plugins.filters.lbf.denoiser import LBFFilter
-from plugins.filters.lbf.filter_cpu import cross_bilateral
-from plugins.filters.lbf.mlp import predict_bandwidths
 from plugins.filters.lbf.weights import (
     DEFAULT_WEIGHTS,
     FORMAT_VERSION,
@@ -32,6 +31,19 @@ TR = pytest.importorskip("plugins.filters.lbf.torch_ref")
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUIRED = {"color", "normal", "albedo", "position", "variance"}
+
+
+def cpu_stages(inputs: FE.Inputs, radius: int = 5, model: LBFWeights | None = None):
+    """The CPU pipeline's output and its kept intermediates (variance, sig, features, params)."""
+    d = CPU.Denoiser(model or load_weights())
+    d.keep = True
+    out, _ = d(inputs, radius)
+    return out, d.last
+
+
+def extract_features(inputs: FE.Inputs):
+    last = cpu_stages(inputs)[1]
+    return last["variance"], last["sig"], last["features"]
 
 
 def random_frame(h, w, seed=0, visibility=False, spp=False, scale=1.0, variance=True) -> Frame:
@@ -125,7 +137,7 @@ def relmse(x, ref):
 )
 def test_features_match_torch(make):
     inputs = FE.gather_inputs(make())
-    var, sig, feat = FE.extract_features(inputs)
+    var, sig, feat = extract_features(inputs)
     var_t, sig_t, feat_t = TR.features(*torch_inputs(inputs))
     np.testing.assert_allclose(var, var_t.numpy(), rtol=1e-6, atol=1e-12)
     assert feat.shape == inputs.shape + (len(FE.FEATURE_NAMES),)
@@ -143,7 +155,7 @@ def test_features_analytic_values():
         "albedo": np.full((h, w, 3), 0.5, np.float32),
         "position": np.zeros((h, w, 3), np.float32),
     }
-    _, _, feat = FE.extract_features(FE.gather_inputs(Frame(ch)))
+    _, _, feat = extract_features(FE.gather_inputs(Frame(ch)))
     named = dict(zip(FE.FEATURE_NAMES, np.moveaxis(feat, -1, 0), strict=True))
     for prefix in ("std7_", "std3_", "mad3_", "grad_", "noise_"):
         for g in FE.GROUPS:
@@ -157,8 +169,8 @@ def test_features_analytic_values():
 def test_visibility_standin_is_foreground_mask():
     frame = random_frame(8, 12, seed=4, visibility=True)
     fg = (frame["normal"] != 0).any(-1)
-    _, sig_auto, _ = FE.extract_features(FE.gather_inputs(frame, "auto"))
-    _, sig_stand, _ = FE.extract_features(FE.gather_inputs(frame, "standin"))
+    _, sig_auto, _ = extract_features(FE.gather_inputs(frame, "auto"))
+    _, sig_stand, _ = extract_features(FE.gather_inputs(frame, "standin"))
     np.testing.assert_array_equal(sig_auto[..., 12], frame["visibility"])
     np.testing.assert_array_equal(sig_stand[..., 12], fg.astype(np.float32))
 
@@ -167,13 +179,12 @@ def test_network_and_filter_match_torch():
     model = load_weights()
     frame = random_frame(15, 17, seed=5, visibility=True)
     inputs = FE.gather_inputs(frame)
-    var, sig, feat = FE.extract_features(inputs)
-    params = predict_bandwidths(feat, model)
+    out, last = cpu_stages(inputs, 4, model)
+    var, sig, feat, params = last["variance"], last["sig"], last["features"], last["params"]
     params_t = torch_mlp(feat, model)
     t = t64
     np.testing.assert_allclose(params, params_t.numpy(), rtol=1e-5, atol=1e-12)
     assert np.all(params > 0)
-    out = cross_bilateral(inputs.color, var, sig, params, 4)
     out_t = TR.cross_bilateral(t(inputs.color), t(var), t(sig), t(params), 4)
     np.testing.assert_allclose(out, out_t.numpy(), rtol=1e-5, atol=1e-6)
 
@@ -185,7 +196,7 @@ def test_end_to_end_matches_torch(radius):
     out = filt(frame)
     ref = torch_pipeline(FE.gather_inputs(frame), filt.model, radius)
     np.testing.assert_allclose(out, ref, rtol=1e-4, atol=1e-5)
-    assert set(filt.stage_ms) == {"features", "network", "bilateral"}
+    assert set(filt.stage_ms) == {"signals", "network", "bilateral"}
     if radius == 0:
         np.testing.assert_array_equal(out, frame["color"])
 
@@ -373,4 +384,4 @@ def test_cuda_simulator_matches_cpu():
     """, NUMBA_ENABLE_CUDASIM="1")
     worst, stages = out.split(" ", 1)
     assert float(worst) < 1e-5
-    assert "features" in stages and "bilateral" in stages
+    assert "signals" in stages and "bilateral" in stages

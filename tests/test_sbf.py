@@ -41,6 +41,13 @@ def synthetic(registry):
     return registry.renderers["synthetic"].factory(), registry.scenes["synthetic-edges"].factory()
 
 
+def _keeping(**params) -> SBFFilter:
+    """An SBF filter that keeps every candidate and SURE map of its last pass."""
+    f = SBFFilter(**params)
+    f.keep_candidates = True
+    return f
+
+
 def _frame(color, variance, normal=None, albedo=None, depth=None):
     h, w = color.shape[:2]
     arrays = {
@@ -131,7 +138,7 @@ def _random_frame(h, w, seed):
 def test_kernels_match_oracle():
     scales = (0.0, 0.7071, 1.0, 2.0)
     frame = _random_frame(9, 11, seed=3)
-    f = SBFFilter(scales=scales, sure_scale=1.0)
+    f = _keeping(scales=scales, sure_scale=1.0)
     out = f(frame)
     F, S, best, ref_out = _oracle(frame, scales, 1.0)
     r = f.last_result
@@ -145,7 +152,7 @@ def test_kernels_match_oracle():
 def test_spatial_variance_matches_oracle():
     frame = _random_frame(9, 11, seed=5)
     blind = frame.replace(variance=np.zeros_like(frame["variance"]))
-    f = SBFFilter(variance_radius=2)
+    f = _keeping(variance_radius=2)
     f(blind)
     y = frame["color"].astype(np.float64)
     n = frame["normal"].astype(np.float64)
@@ -166,13 +173,13 @@ def test_spatial_variance_matches_oracle():
             denom = wt.sum() - (wt**2).sum() / wt.sum()
             if denom > 1e-3:
                 expect[i, j] = (wt * (y[rows, cols] - mean) ** 2).sum((0, 1)) / denom
-    np.testing.assert_allclose(np.moveaxis(f.last_result.variance, 0, -1), expect, rtol=1e-4, atol=1e-7)
+    np.testing.assert_allclose(f.last_result.variance, expect, rtol=1e-4, atol=1e-7)
 
 
 def test_identity_candidate_and_divergence():
     """Scale 0 returns the input with SURE = sigma^2; every window holds W >= 1."""
     frame = _random_frame(7, 6, seed=1)
-    f = SBFFilter()
+    f = _keeping()
     f(frame)
     r = f.last_result
     np.testing.assert_array_equal(np.moveaxis(r.candidates[0], 0, -1), frame["color"])
@@ -195,7 +202,7 @@ def test_sure_unbiased_on_synthetic_renderer(synthetic):
     diff, naive_diff = [], []
     for seed in seeds:
         frame = renderer.render(scene, 0, spp=2, seed=seed, channels=ALL, resolution=res)
-        f = SBFFilter()
+        f = _keeping()
         f(frame)
         cand = np.moveaxis(f.last_result.candidates, 1, -1).astype(np.float64)
         mse = ((cand - ref) ** 2).mean(axis=(1, 2, 3))
@@ -223,7 +230,7 @@ def test_unknown_variance_is_estimated_spatially(synthetic):
     blind = frame.replace(variance=np.zeros_like(truth))
     f = SBFFilter()
     out = f(blind)
-    est = np.moveaxis(f.last_result.variance, 0, -1)
+    est = f.last_result.variance
     noisy = truth > 0
     assert 0.7 < est[noisy].mean() / truth[noisy].mean() < 1.4
     assert 0.5 < np.median(est[noisy] / truth[noisy]) < 1.5
@@ -234,7 +241,7 @@ def test_unknown_variance_is_estimated_spatially(synthetic):
     g = SBFFilter()
     g(frame)
     known = truth.any(axis=-1)
-    np.testing.assert_array_equal(np.moveaxis(g.last_result.variance, 0, -1)[known], truth[known])
+    np.testing.assert_array_equal(g.last_result.variance[known], truth[known])
     h = SBFFilter(variance_source="given")
     np.testing.assert_array_equal(h(blind), blind["color"])
     # without an spp channel, an all-zero variance channel also means "unknown"
@@ -469,6 +476,7 @@ _CUDA_SCRIPT = textwrap.dedent(
     report = []
     for f in (frame, blind):
         a, b = SBFFilter(backend="cpu"), SBFFilter(backend="cuda")
+        a.keep_candidates = b.keep_candidates = True
         oa, ob = a(f), b(f)
         ra, rb = a.last_result, b.last_result
         report.append({

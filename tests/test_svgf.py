@@ -244,6 +244,36 @@ def test_fireflies_and_huge_values_stay_finite(registry):
         assert np.all(filt.variance_estimate() >= 0.0)
 
 
+@pytest.mark.parametrize("value", [np.nan, np.inf, -np.inf, np.float32(3.4e38), 0.0])
+def test_bad_albedo_gives_finite_output(registry, value):
+    """A NaN albedo used to make the whole output NaN. NaN demodulates by 1, +-inf and huge values
+    are limited to [albedo_epsilon, 1e6]; the pixel is filtered like its neighbours."""
+    filt = _svgf(registry)
+    rng = np.random.default_rng(4)
+    for k in range(3):
+        frame = _flat_frame(12, 14, 0.5, camera_cut=k == 0)
+        color = rng.exponential(0.5, (12, 14, 3)).astype(np.float32)
+        albedo = frame["albedo"].copy()
+        albedo[5, 6] = value
+        albedo[0, :, 1] = value
+        out = filt(frame.replace(color=color, albedo=albedo))
+        assert np.all(np.isfinite(out))
+        assert np.all(out <= 1e6 * color.max())
+
+
+def test_colour_is_the_authority_over_direct(registry, renderer):
+    """With the split, SVGF filters ``indirect`` and ``color - indirect``: ``direct`` is not read
+    (a NaN in it changes nothing), and a firefly in ``color`` alone reaches the output."""
+    (frame, _), = _sequence(registry, renderer, "synthetic-edges", 1, (24, 18))
+    base = _svgf(registry)(frame)
+    garbage = np.full_like(frame["color"], np.nan)
+    np.testing.assert_array_equal(_svgf(registry)(frame.replace(direct=garbage)), base)
+    color = frame["color"].copy()
+    i, j = np.argwhere(frame["object_id"] >= 0)[len(np.argwhere(frame["object_id"] >= 0)) // 2]
+    color[i, j] += 20.0
+    assert _svgf(registry)(frame.replace(color=color))[i, j].sum() > base[i, j].sum() + 1.0
+
+
 def test_cuda_backend_agrees_with_cpu_in_simulator():
     script = textwrap.dedent(
         """
@@ -264,6 +294,22 @@ def test_cuda_backend_agrees_with_cpu_in_simulator():
                 np.testing.assert_allclose(b, a, rtol=2e-4, atol=1e-5)
                 np.testing.assert_allclose(gpu.history_length(), cpu.history_length())
             assert set(gpu.stage_ms) == set(cpu.stage_ms)
+        # bad input: NaN albedo and normal, a colour of 3e38, an infinite indirect and motion
+        cpu = spec.factory(backend="cpu")
+        gpu = spec.factory(backend="cuda")
+        for k in (0, 1):
+            f = r.render(scene, k, spp=1, seed=2, channels=frozenset(CHANNELS), resolution=(12, 10))
+            albedo, normal, color = f["albedo"].copy(), f["normal"].copy(), f["color"].copy()
+            indirect, motion = f["indirect"].copy(), f["motion"].copy()
+            albedo[2, 3] = np.nan
+            normal[4, 5, 0] = np.nan
+            color[6, 7] = 3e38
+            indirect[1, 1, 2] = np.inf
+            motion[3, 3] = np.nan
+            f = f.replace(albedo=albedo, normal=normal, color=color, indirect=indirect, motion=motion)
+            a, b = cpu(f), gpu(f)
+            assert np.all(np.isfinite(a)) and np.all(np.isfinite(b))
+            np.testing.assert_allclose(b, a, rtol=2e-4, atol=1e-5)
         print("AGREE")
         """
     )
@@ -332,6 +378,28 @@ def test_emission_improves_cornell(registry):
     assert _rmse(out, ref, everywhere) < 0.3 * _rmse(plain, ref, everywhere)
 
 
+def test_parallel_path_equals_one_thread(registry, renderer):
+    """Frames of 256x256 pixels and more run on all threads (smaller ones on one): the result
+    does not depend on the number of threads (no sum is split between threads)."""
+    from numba import get_num_threads, set_num_threads
+
+    from plugins.filters.svgf.pipeline import SERIAL_MAX_PIXELS
+
+    seq = _sequence(registry, renderer, "synthetic-moving", 2, (256, 257), seed=4)
+    assert 256 * 257 >= SERIAL_MAX_PIXELS
+    threads = get_num_threads()
+    outs = []
+    for n in (threads, 1):
+        set_num_threads(n)
+        try:
+            filt = _svgf(registry)
+            outs.append([filt(frame) for frame, _ in seq])
+        finally:
+            set_num_threads(threads)
+    for a, b in zip(*outs):
+        np.testing.assert_array_equal(a, b)
+
+
 def _atrous_oracle():
     from numba import njit
 
@@ -371,7 +439,6 @@ def test_cpu_atrous_planes_match_the_per_pixel_filter(nsig):
     pool = ap.PlanePool(nsig, h, w, iterations)
     ap.pack_planes(valid, depth, normal, grad, sig, var, params[0], params[3], pool.halo, pool.stride,
                    pool.plane_size, pool.signal_plane(0), pool.planes)
-    planes = pool.planes.reshape(-1, h, pool.stride)[:, :, pool.halo:pool.halo + w]
     for it in range(iterations):
         want, want_var = np.empty_like(sig), np.empty_like(var)
         oracle(1 << it, sig, var, valid, depth, normal, grad, np.array(params), want, want_var)
@@ -380,7 +447,7 @@ def test_cpu_atrous_planes_match_the_per_pixel_filter(nsig):
         ap.atrous_level(pool.planes, pool.plane_size, nsig, h, w, pool.halo, pool.stride, 1 << it,
                         pool.signal_plane(it % 2), dst, params[1], params[2], params[4], True, got, 2)
         np.testing.assert_allclose(got, want, rtol=1e-4, atol=1e-5)
-        got_var = np.stack([planes[dst + s * ap.SIGNAL_PLANES + 3] for s in range(nsig)])
+        got_var = np.stack([pool.interior(dst + s * ap.SIGNAL_PLANES + 3) for s in range(nsig)])
         np.testing.assert_allclose(got_var, want_var, rtol=1e-4, atol=1e-7)
         assert np.all(got[:, :, valid == 0] == 0.0)
         sig, var = want, want_var

@@ -11,13 +11,13 @@ import pandas as pd
 from harness.bench import DEFAULT_PEERS, bench_filters
 from harness.cache import Cache
 from harness.cli.stress import cmd_stress, show_stress  # noqa: F401 (cmd_stress: the `stress` sub-command)
-from harness.executors import make_executor
+from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
 from harness.manifest import read_manifest
 from harness.plan import choose_renderer, make_plan
 from harness.renders import RenderStore, scene_selection
-from harness.results import format_table, leaderboard, read_results, summary, to_markdown
+from harness.results import format_table, leaderboard, read_results, summary, timing_setups, to_markdown
 from harness.run import run_plan
 from harness.specs import TASKS
 
@@ -33,9 +33,24 @@ def _cache(args) -> Cache:
     return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False))
 
 
+def _cluster_options(args) -> dict:
+    """``--scheduler``/``--workers`` as executor options, checked against ``--executor``."""
+    if args.executor != "dask":
+        if args.scheduler or args.workers:
+            raise ValueError("--scheduler and --workers need --executor dask")
+        return {}
+    if args.scheduler and args.workers:
+        raise ValueError("--workers sizes a local cluster; with --scheduler the cluster's own workers run")
+    return {"scheduler": args.scheduler, "workers": args.workers}
+
+
 def _executor(registry, args):
     plugins = PluginOptions(disable=list(args.disable))
-    return make_executor(args.executor, registry=registry, plugins=plugins, timeout=args.timeout)
+    options = {"registry": registry, "plugins": plugins, "timeout": getattr(args, "timeout", DEFAULT_TIMEOUT_S)}
+    executor = make_executor(args.executor, **options, **_cluster_options(args))
+    if hasattr(executor, "banner"):
+        print(executor.banner(), file=sys.stderr)
+    return executor
 
 
 def _progress(args) -> bool:
@@ -45,6 +60,7 @@ def _progress(args) -> bool:
 def cmd_run(registry, args) -> int:
     """Plan, run, store and summarise a benchmark."""
     tasks = list(TASKS) if args.task == "all" else [args.task]
+    _cluster_options(args)
     with FolderLock(check_out_dir(args.out)):
         return _run(registry, args, tasks)
 
@@ -63,7 +79,7 @@ def _run(registry, args, tasks) -> int:
           f"results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
-                           progress=_progress(args))
+                           save_outputs=args.save_outputs, progress=_progress(args))
     df = outcome.table
     if args.csv:
         df.to_csv(args.out / "results.csv", index=False)
@@ -90,6 +106,10 @@ def _print_summary(df: pd.DataFrame, registry) -> None:
         for task, part in board.groupby("task", sort=True):
             print(f"\nLeaderboard, task {task} (mean rank over scenes and metrics, best first):")
             print(format_table(part.drop(columns="task")))
+        setups = timing_setups(df)
+        if len(setups) > 1:
+            print(f"\nNote: rows were timed on {len(setups)} machine setups ({'; '.join(setups)}); compare ms_median "
+                  "only between entries of the same setup (column timed_on)")
     skipped = df[df.status == "skipped"]
     if not skipped.empty:
         print("\nSkipped:")
@@ -161,23 +181,73 @@ def cmd_render(registry, args) -> int:
     """Render references of every selected scene frame into the cache, in resumable chunks."""
     from tqdm.auto import tqdm
 
+    _cluster_options(args)
     store = RenderStore(registry, _cache(args), resolution=args.resolution)
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
-    for spec in specs:
-        rname = args.renderer or choose_renderer(registry, spec, args.task)
-        if rname is None:
-            raise ValueError(f"no renderer serves task {args.task!r} for scene {spec.name!r} ({spec.kind})")
-        rspec = registry.get("renderer", rname)
-        if not rspec.references:
-            raise ValueError(f"renderer {rname!r} makes no references")
-        spp = args.spp if args.spp is not None else rspec.reference_spp
-        frames = spec.frames if args.frames is None else min(spec.frames, args.frames)
+    work = [_what_to_render(registry, store, spec, args) for spec in specs]
+    if args.executor == "dask":
+        return _render_on_cluster(registry, args, store, work)
+    for spec, rname, spp, frames in work:
         width, height = store.resolution_of(spec)
         with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {spp} spp)", unit="spp",
                   disable=not sys.stderr.isatty()) as bar:
             for t in range(frames):
                 store.reference(spec.name, rname, t, spp=spp, chunk=args.chunk, progress=bar.update)
         print(f"{spec.name}: {frames} reference frame(s) at {spp} spp, {width}x{height}, in the cache")
+    return 0
+
+
+def cmd_export(registry, args) -> int:
+    """Write every selected scene as a capture folder (multi-layer EXR frames, references, sidecar)."""
+    from harness.export import export_scene
+
+    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
+    for spec in specs:
+        sidecar = export_scene(registry, store, spec, args.out / spec.name, task=args.task, renderer=args.renderer,
+                               frames=args.frames, spp=args.spp, seed=args.seed, reference_spp=args.reference_spp,
+                               half=args.half)
+        print(f"{spec.name}: written to {sidecar.parent} (open it with --scene-dir {sidecar.parent})")
+    return 0
+
+
+def _what_to_render(registry, store, spec, args) -> tuple:
+    """(scene spec, renderer, reference spp, frames) of one scene of ``denoise-bench render``."""
+    rname = args.renderer or choose_renderer(registry, spec, args.task)
+    if rname is None:
+        raise ValueError(f"no renderer serves task {args.task!r} for scene {spec.name!r} ({spec.kind})")
+    rspec = registry.get("renderer", rname)
+    if not rspec.references:
+        raise ValueError(f"renderer {rname!r} makes no references")
+    spp = args.spp if args.spp is not None else rspec.reference_spp
+    frames = spec.frames if args.frames is None else min(spec.frames, args.frames)
+    return spec, rname, spp, frames
+
+
+def _render_on_cluster(registry, args, store, work) -> int:
+    """Every chunk of every reference as a task; one progress bar over all of them."""
+    import threading
+
+    from tqdm.auto import tqdm
+
+    from harness.remote_renders import RemoteRenders
+
+    lock = threading.Lock()
+    total = sum(frames * max(spp, 1) for _, _, spp, frames in work)
+    with _executor(registry, args) as executor, RemoteRenders(store, executor, chunk=args.chunk) as renders, \
+            tqdm(total=total, desc=f"references ({args.chunk} spp per task)", unit="spp",
+                 disable=not sys.stderr.isatty()) as bar:
+        def tick(n: int) -> None:
+            with lock:
+                bar.update(n)
+
+        requests = [(spec, rname, spp, frames, [renders.reference(spec.name, rname, t, spp=spp, progress=tick)
+                                                for t in range(frames)]) for spec, rname, spp, frames in work]
+        for spec, _, spp, frames, futures in requests:
+            for future in futures:
+                future.result()
+            width, height = store.resolution_of(spec)
+            print(f"{spec.name}: {frames} reference frame(s) at {spp} spp, {width}x{height}, in the cache")
     return 0
 
 

@@ -10,7 +10,7 @@ import json
 from pathlib import Path
 
 from harness.cache import default_cache_dir
-from harness.executors import DEFAULT_TIMEOUT_S, EXECUTORS
+from harness.executors import DASK_MISSING, DEFAULT_TIMEOUT_S, EXECUTOR_NAMES, EXECUTORS
 from harness.plan import BACKEND_CHOICES
 from harness.specs import TASKS
 
@@ -122,6 +122,19 @@ def backends(value: str) -> list[str]:
     return items
 
 
+def executor_name(allowed=EXECUTOR_NAMES):
+    """An executor name among ``allowed``; ``dask`` where it is not installed says how to get it."""
+
+    def parse(value: str) -> str:
+        if value not in allowed:
+            raise argparse.ArgumentTypeError(f"must be one of {', '.join(allowed)}, got {value!r}")
+        if value == "dask" and value not in EXECUTORS:
+            raise argparse.ArgumentTypeError(DASK_MISSING)
+        return value
+
+    return parse
+
+
 def out_dir(value: str) -> Path:
     path = Path(value)
     if path.exists() and not path.is_dir():
@@ -135,11 +148,23 @@ def _add_common(p: argparse.ArgumentParser) -> None:
 
 
 def _add_executor(p: argparse.ArgumentParser, timeout: float = DEFAULT_TIMEOUT_S) -> None:
-    p.add_argument("--executor", choices=sorted(EXECUTORS), default="local",
-                   help="where jobs run: local (a worker process that isolates crashes and hangs; default) "
-                        "or inline (this process, for debugging)")
+    p.add_argument("--executor", type=executor_name(), default="local", metavar="{" + ",".join(EXECUTOR_NAMES) + "}",
+                   help="where jobs run: local (a worker process that isolates crashes and hangs; default), "
+                        "inline (this process, for debugging) or dask (a dask.distributed cluster; "
+                        "extra [dask])")
     p.add_argument("--timeout", type=positive_seconds, default=timeout, metavar="SECONDS",
-                   help=f"a job with no progress for this long is stopped (default {timeout:g})")
+                   help=f"a job with no progress for this long is stopped (default {timeout:g}; "
+                        "not enforced by the dask executor)")
+    _add_cluster(p)
+
+
+def _add_cluster(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="with --executor dask: the scheduler to use (default $DASK_SCHEDULER_ADDRESS; "
+                        "none: a local cluster of worker processes)")
+    p.add_argument("--workers", type=integer(1), default=None, metavar="N",
+                   help="with --executor dask and no scheduler: worker processes of the local cluster "
+                        "(default: one per core)")
 
 
 def _add_selection(p: argparse.ArgumentParser) -> None:
@@ -184,6 +209,8 @@ def build_parser() -> Parser:
     run.add_argument("--out", type=out_dir, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
     run.add_argument("--csv", action="store_true", help="also write results.csv")
     run.add_argument("--pictures", action="store_true", help="write PNGs of every filter's first frame")
+    run.add_argument("--save-outputs", action="store_true",
+                     help="write every filter output as linear HDR OpenEXR under OUT/outputs/")
     run.add_argument("--resume", action="store_true",
                      help="keep stored jobs whose inputs are unchanged, run the rest")
     run.add_argument("--strict", action="store_true", help="exit 1 if any job errored")
@@ -211,7 +238,23 @@ def build_parser() -> Parser:
     render.add_argument("--spp", type=integer(1), default=None,
                         help="reference samples per pixel (default: the renderer's)")
     render.add_argument("--chunk", type=integer(1), default=64, help="samples per chunk between checkpoints")
+    render.add_argument("--executor", type=executor_name(("inline", "dask")), default="inline",
+                        metavar="{inline,dask}",
+                        help="inline (this process; default) or dask (each chunk a task on a dask.distributed "
+                             "cluster; extra [dask])")
+    _add_cluster(render)
     _add_common(render)
+
+    export = sub.add_parser("export", help="write scenes' frames, G-buffers and references as OpenEXR captures")
+    _add_selection(export)
+    export.add_argument("--out", type=out_dir, required=True, help="folder receiving one capture folder per scene")
+    export.add_argument("--task", choices=list(TASKS), default="denoise", help="whose frames and references")
+    export.add_argument("--spp", type=integer(1), default=1, help="samples per pixel of the frames (default 1)")
+    export.add_argument("--seed", type=integer(0), default=0, help="seed of the frames (default 0)")
+    export.add_argument("--reference-spp", type=integer(1), default=None,
+                        help="samples per pixel of references (default: the renderer's)")
+    export.add_argument("--half", action="store_true", help="store half floats (smaller; not bit-exact)")
+    _add_common(export)
 
     bench = sub.add_parser("bench", help="time filters per frame against peers in the same process")
     bench.add_argument("filters", type=names, help="filter(s) to time, comma-separated")

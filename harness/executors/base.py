@@ -30,10 +30,13 @@ class Task(ABC):
         The input several tasks share (None when there is none).
     label : str
         What the task is, for progress and error messages.
+    timed : bool
+        The task measures time: an executor that shares a machine between tasks runs it alone.
     """
 
     shared: Shared | None = None
     label: str = "task"
+    timed: bool = False
 
     @abstractmethod
     def run(self, context: WorkerContext, shared: Any) -> Any:

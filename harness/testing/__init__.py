@@ -9,7 +9,8 @@ Example, in a third party's test file::
         plugin_check()
 
 Every check of :mod:`harness.testing.checks` for that kind becomes one test, with an id like
-``filter:my_filter[cpu]-check_constant_image``. With no arguments every registered plugin of
+``filter:my_filter[cpu]-check_constant_image``. Filters of the ``antialias`` task also get the
+checks of :mod:`harness.testing.antialias_checks`. With no arguments every registered plugin of
 every kind is checked (the project's own suite does this). The ``cuda`` backend is checked where
 ``numba.cuda`` can run (a GPU, or ``NUMBA_ENABLE_CUDASIM=1``) and ``cuda_checks`` is true.
 
@@ -29,6 +30,7 @@ import functools
 from harness.backends import cuda_available
 from harness.plugins import load_plugins
 from harness.stress.cases import exemption
+from harness.testing.antialias_checks import ANTIALIAS_CHECKS
 from harness.testing.checks import FILTER_CHECKS, METRIC_CHECKS, RENDERER_CHECKS, SCENE_CHECKS
 from harness.testing.frames import make_frame
 from harness.testing.stress import StressCheck, stress_checks
@@ -96,7 +98,11 @@ def plugin_checks(
             backends = [None]
             if kind == "filter":
                 backends = [b for b in spec.backends if b == "cpu" or (cuda_checks and cuda_available())]
-            checks = list(_CHECKS[kind]) + (stress_checks(spec, stress) if kind == "filter" else [])
+            checks = list(_CHECKS[kind])
+            if kind == "filter" and "antialias" in spec.tasks:
+                checks += ANTIALIAS_CHECKS  # the anti-aliasing task's own checks
+            if kind == "filter":
+                checks += stress_checks(spec, stress)
             for backend in backends:
                 for check in checks:
                     items.append(PluginCheck(kind, name, backend, check))

@@ -2,8 +2,9 @@
 
 The only host-side work is the frame's position mean and scale (two scalar reductions, done
 with the CPU code of :func:`.features.position_stats`), the test whether the frame carries a
-variance, and the transfers. Runs under Numba's
-CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``) for tests.
+variance, the filter's planar colour and variance, and the transfers. :class:`Denoiser` is the
+entry point, as in :mod:`.cpu`. Runs under Numba's CUDA simulator (``NUMBA_ENABLE_CUDASIM=1``)
+for tests.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from .features import FEATURE_VAR_FLOOR, Inputs, position_stats
 
 _signals_d = cuda.jit(device=True)(K.signals_px)
 _haar_d = cuda.jit(device=True)(K.haar_px)
-_box_rows_d = cuda.jit(device=True)(K.box_rows_px)
+_box7_d = cuda.jit(device=True)(K.box7_px)
 _combine_d = cuda.jit(device=True)(K.combine_px)
 _mlp_d = cuda.jit(device=True)(K.mlp_px)
 _filter_d = cuda.jit(device=True)(K.filter_px)
@@ -46,7 +47,7 @@ def _variance_estimate_k(rows, r, out):
 def _signals_k(color, variance, position, normal, albedo, vis, has_vis, spp, has_spp,
                mu0, mu1, mu2, inv_scale, sig, aux):
     j, i = cuda.grid(2)
-    if i < sig.shape[0] and j < sig.shape[1]:
+    if i < color.shape[0] and j < color.shape[1]:
         _signals_d(i, j, color, variance, position, normal, albedo, vis, has_vis, spp, has_spp,
                    mu0, mu1, mu2, inv_scale, sig, aux)
 
@@ -54,44 +55,45 @@ def _signals_k(color, variance, position, normal, albedo, vis, has_vis, spp, has
 @cuda.jit
 def _haar_k(sig, hh):
     j, i = cuda.grid(2)
-    if i < sig.shape[0] and j < sig.shape[1]:
+    if i < sig.shape[1] and j < sig.shape[2]:
         _haar_d(i, j, sig, hh)
 
 
 @cuda.jit
-def _box_rows_k(sig, aux, r, n_aux, dst):
+def _features_network_k(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params):
     j, i = cuda.grid(2)
-    if i < sig.shape[0] and j < sig.shape[1]:
-        _box_rows_d(i, j, sig, aux, r, n_aux, dst)
-
-
-@cuda.jit
-def _combine_k(sig, aux, hh, r7, r3, out):
-    j, i = cuda.grid(2)
-    if i < sig.shape[0] and j < sig.shape[1]:
+    if i < sig.shape[1] and j < sig.shape[2]:
         col7 = cuda.local.array(K.N_BOX7, float64)
-        col3 = cuda.local.array(K.N_BOX3, float64)
         med = cuda.local.array(9, float64)
-        _combine_d(i, j, sig, aux, hh, r7, r3, out, col7, col3, med)
-
-
-@cuda.jit
-def _mlp_k(feat, mean, inv_std, w1, b1, w2, b2, params):
-    j, i = cuda.grid(2)
-    if i < feat.shape[0] and j < feat.shape[1]:
+        feat = cuda.local.array(K.N_FEATURES, float64)
         z = cuda.local.array(K.N_FEATURES, float64)
         hidden = cuda.local.array(K.N_HIDDEN, float64)
-        _mlp_d(i, j, feat, mean, inv_std, w1, b1, w2, b2, z, hidden, params)
+        out = cuda.local.array(K.N_OUT, float64)
+        _box7_d(i, j, sig, aux, col7)
+        _combine_d(i, j, sig, aux, hh, col7, med, feat)
+        _mlp_d(feat, mean, inv_std, w1, b1, w2, b2, z, hidden, out)
+        for o in range(K.N_OUT):
+            params[o, i, j] = out[o]
 
 
 @cuda.jit
 def _filter_k(color, variance, sig, params, radius, inv_tau, out):
     j, i = cuda.grid(2)
-    if i < color.shape[0] and j < color.shape[1]:
+    if i < color.shape[1] and j < color.shape[2]:
         _filter_d(i, j, color, variance, sig, params, radius, inv_tau, out)
 
 
-class CudaLBF:
+def _planes(color: np.ndarray, variance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The filter's planar colour (NaN -> 0, clamped to float32) and sanitised variance."""
+    big = np.finfo(np.float32).max
+    c = np.clip(np.nan_to_num(np.moveaxis(color, -1, 0), nan=0.0), -big, big)
+    with np.errstate(invalid="ignore"):
+        v = np.moveaxis(variance, -1, 0)
+        v = np.where(v > 0, np.minimum(v, K.VAR_MAX), 0.0)
+    return np.ascontiguousarray(c, np.float32), np.ascontiguousarray(v, np.float32)
+
+
+class Denoiser:
     """The LBF pipeline on the GPU, with the network's weights kept on the device.
 
     Parameters
@@ -108,7 +110,7 @@ class CudaLBF:
         arrays = (model.mean, model.inv_std, model.w1, model.b1, model.w2, model.b2)
         self._w = [cuda.to_device(a) for a in arrays]
 
-    def run(self, inputs: Inputs, radius: int) -> tuple[np.ndarray, dict]:
+    def __call__(self, inputs: Inputs, radius: int) -> tuple[np.ndarray, dict]:
         """Filter one frame; returns the output (H, W, 3) float32 and the per-stage milliseconds."""
         h, w = inputs.shape
         grid = ((w + BLOCK[0] - 1) // BLOCK[0], (h + BLOCK[1] - 1) // BLOCK[1])
@@ -123,35 +125,31 @@ class CudaLBF:
             _color_rows_k[grid, BLOCK](d["color"], K.VAR_RADIUS, rows)
             d["variance"] = cuda.device_array((h, w, 3), np.float32)
             _variance_estimate_k[grid, BLOCK](rows, K.VAR_RADIUS, d["variance"])
-        sig = cuda.device_array((h, w, K.N_SIG), np.float32)
+        sig = cuda.device_array((K.N_SIG, h, w), np.float32)
         aux = cuda.device_array((h, w, 3), np.float32)
         _signals_k[grid, BLOCK](d["color"], d["variance"], d["position"], d["normal"], d["albedo"],
                                 d["vis"], inputs.has_vis, d["spp"], inputs.has_spp,
                                 float(mu[0]), float(mu[1]), float(mu[2]), 1.0 / scale, sig, aux)
         hh = cuda.device_array((h, w, 5), np.float32)
         _haar_k[grid, BLOCK](sig, hh)
-        r7 = cuda.device_array((h, w, K.N_BOX7), np.float64)
-        _box_rows_k[grid, BLOCK](sig, aux, 3, 2, r7)
-        r3 = cuda.device_array((h, w, K.N_BOX3), np.float64)
-        _box_rows_k[grid, BLOCK](sig, aux, 1, 0, r3)
-        feat = cuda.device_array((h, w, K.N_FEATURES), np.float32)
-        _combine_k[grid, BLOCK](sig, aux, hh, r7, r3, feat)
         cuda.synchronize()
         t2 = time.perf_counter_ns()
-        params = cuda.device_array((h, w, K.N_OUT), np.float32)
-        _mlp_k[grid, BLOCK](feat, *self._w, params)
+        params = cuda.device_array((K.N_OUT, h, w), np.float32)
+        _features_network_k[grid, BLOCK](sig, aux, hh, *self._w, params)
         cuda.synchronize()
         t3 = time.perf_counter_ns()
+        variance = d["variance"].copy_to_host() if inputs.estimate_variance else inputs.variance
+        cplane, vplane = _planes(inputs.color, variance)
         out = cuda.device_array((h, w, 3), np.float32)
-        _filter_k[grid, BLOCK](d["color"], d["variance"], sig, params, int(radius),
-                               1.0 / FEATURE_VAR_FLOOR, out)
+        _filter_k[grid, BLOCK](cuda.to_device(cplane), cuda.to_device(vplane), sig, params,
+                               int(radius), 1.0 / FEATURE_VAR_FLOOR, out)
         cuda.synchronize()
         t4 = time.perf_counter_ns()
         result = out.copy_to_host()
         t5 = time.perf_counter_ns()
         stage_ms = {
             "upload": (t1 - t0) / 1e6,
-            "features": (t2 - t1) / 1e6,
+            "signals": (t2 - t1) / 1e6,
             "network": (t3 - t2) / 1e6,
             "bilateral": (t4 - t3) / 1e6,
             "download": (t5 - t4) / 1e6,

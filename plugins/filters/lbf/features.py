@@ -1,4 +1,4 @@
-"""LBF feature extraction on the CPU (Numba).
+"""LBF's features: their names, the inputs read from a frame, the frame's position scale.
 
 Primary features (compared by the filter): world position normalised by the frame's scene
 scale (3), shading normal (3), albedo (3) and direct-light visibility (1). When the frame has no
@@ -51,14 +51,6 @@ assert len(FEATURE_NAMES) == K.N_FEATURES
 
 #: the floor of the filter's feature denominators max(floor, var_i(f))
 FEATURE_VAR_FLOOR = 1e-4
-
-_signals_px = njit(cache=True)(K.signals_px)
-_haar_px = njit(cache=True)(K.haar_px)
-_box_rows_px = njit(cache=True)(K.box_rows_px)
-_combine_px = njit(cache=True)(K.combine_px)
-_color_rows_px = njit(cache=True)(K.color_rows_px)
-_variance_estimate_px = njit(cache=True)(K.variance_estimate_px)
-
 
 @dataclass
 class Inputs:
@@ -126,6 +118,17 @@ def _readonly(a: np.ndarray) -> np.ndarray:
     return view
 
 
+@njit(cache=True)
+def _counts(position, normal, i, j):
+    """Foreground (non-zero normal) with a position of modest finite size: enters the scale."""
+    if normal[i, j, 0] == 0.0 and normal[i, j, 1] == 0.0 and normal[i, j, 2] == 0.0:
+        return False
+    for ch in range(3):
+        if not abs(position[i, j, ch]) <= 1e18:  # NaN, +-Inf and absurd values
+            return False
+    return True
+
+
 @njit(parallel=True, cache=True)
 def _position_rows(position, normal, rows):
     h, w, _ = position.shape
@@ -135,7 +138,7 @@ def _position_rows(position, normal, rows):
         s1 = 0.0
         s2 = 0.0
         for j in range(w):
-            if normal[i, j, 0] != 0.0 or normal[i, j, 1] != 0.0 or normal[i, j, 2] != 0.0:
+            if _counts(position, normal, i, j):
                 n += 1.0
                 s0 += position[i, j, 0]
                 s1 += position[i, j, 1]
@@ -152,7 +155,7 @@ def _position_spread_rows(position, normal, mu, rows):
     for i in prange(h):
         s = 0.0
         for j in range(w):
-            if normal[i, j, 0] != 0.0 or normal[i, j, 1] != 0.0 or normal[i, j, 2] != 0.0:
+            if _counts(position, normal, i, j):
                 for ch in range(3):
                     d = position[i, j, ch] - mu[ch]
                     s += d * d
@@ -170,7 +173,8 @@ def position_stats(position: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray
     Returns
     -------
     mu : ndarray (3,) float64
-        Mean foreground position (zero without foreground).
+        Mean foreground position (zero without foreground). Positions that are not finite
+        (or beyond 1e18) are left out of the mean and scale.
     scale : float
         Root-mean-square distance of foreground positions from ``mu`` (1 when that is zero or
         there is no foreground). Positions are compared as ``(p - mu) / scale``.
@@ -188,122 +192,3 @@ def position_stats(position: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray
     if not np.isfinite(scale) or scale <= 1e-12:
         scale = 1.0
     return mu, scale
-
-
-@njit(parallel=True, cache=True)
-def _signals_cpu(color, variance, position, normal, albedo, vis, has_vis, spp, has_spp,
-                 mu0, mu1, mu2, inv_scale, sig, aux):
-    h, w, _ = color.shape
-    for i in prange(h):
-        for j in range(w):
-            _signals_px(i, j, color, variance, position, normal, albedo, vis, has_vis, spp,
-                        has_spp, mu0, mu1, mu2, inv_scale, sig, aux)
-
-
-@njit(parallel=True, cache=True)
-def _haar_cpu(sig, hh):
-    h, w, _ = sig.shape
-    for i in prange(h):
-        for j in range(w):
-            _haar_px(i, j, sig, hh)
-
-
-@njit(parallel=True, cache=True)
-def _box_rows_cpu(sig, aux, r, n_aux, dst):
-    h, w, _ = sig.shape
-    for i in prange(h):
-        for j in range(w):
-            _box_rows_px(i, j, sig, aux, r, n_aux, dst)
-
-
-@njit(parallel=True, cache=True)
-def _combine_cpu(sig, aux, hh, r7, r3, out):
-    h, w, _ = sig.shape
-    for i in prange(h):
-        col7 = np.empty(K.N_BOX7)
-        col3 = np.empty(K.N_BOX3)
-        med = np.empty(9)
-        for j in range(w):
-            _combine_px(i, j, sig, aux, hh, r7, r3, out, col7, col3, med)
-
-
-@njit(parallel=True, cache=True)
-def _color_rows_cpu(color, r, dst):
-    h, w, _ = color.shape
-    for i in prange(h):
-        for j in range(w):
-            _color_rows_px(i, j, color, r, dst)
-
-
-@njit(parallel=True, cache=True)
-def _variance_estimate_cpu(rows, r, out):
-    h, w, _ = rows.shape
-    for i in prange(h):
-        for j in range(w):
-            _variance_estimate_px(i, j, rows, r, out)
-
-
-def scratch(work: dict | None, name: str, shape: tuple, dtype) -> np.ndarray:
-    """An uninitialised array, reused from ``work`` (a dict kept by the caller) when it fits.
-
-    Reusing the large intermediate buffers between frames of the same size saves their
-    allocation and first-touch page faults (hundreds of MB at 1280x720).
-    """
-    if work is None:
-        return np.empty(shape, dtype)
-    a = work.get(name)
-    if a is None or a.shape != shape or a.dtype != dtype:
-        a = work[name] = np.empty(shape, dtype)
-    return a
-
-
-def effective_variance(inputs: Inputs, work: dict | None = None) -> np.ndarray:
-    """The frame's variance, or its spatial estimate when the frame carries none (H, W, 3)."""
-    if not inputs.estimate_variance:
-        return inputs.variance
-    h, w = inputs.shape
-    rows = scratch(work, "color_rows", (h, w, 6), np.float64)
-    _color_rows_cpu(inputs.color, K.VAR_RADIUS, rows)
-    out = scratch(work, "variance", (h, w, 3), np.float32)
-    _variance_estimate_cpu(rows, K.VAR_RADIUS, out)
-    return _readonly(out)
-
-
-def extract_features(inputs: Inputs, work: dict | None = None
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Signals and secondary features of a frame, on the CPU.
-
-    Parameters
-    ----------
-    inputs : Inputs
-        From :func:`gather_inputs`.
-    work : dict, optional
-        Buffers reused between calls (see :func:`scratch`); the returned arrays live in it and
-        are overwritten by the next call with the same ``work``.
-
-    Returns
-    -------
-    variance : ndarray (H, W, 3) float32
-        The variance the filter uses (:func:`effective_variance`).
-    sig : ndarray (H, W, 13) float32
-        Signal channels; 3-12 are the primary features (see :mod:`.kernels`).
-    features : ndarray (H, W, 36) float32
-        Secondary features in the order of :data:`FEATURE_NAMES`, not yet z-normalised.
-    """
-    h, w = inputs.shape
-    variance = effective_variance(inputs, work)
-    mu, scale = position_stats(inputs.position, inputs.normal)
-    sig = scratch(work, "sig", (h, w, K.N_SIG), np.float32)
-    aux = scratch(work, "aux", (h, w, 3), np.float32)
-    _signals_cpu(inputs.color, variance, inputs.position, inputs.normal, inputs.albedo,
-                 inputs.vis, inputs.has_vis, inputs.spp, inputs.has_spp,
-                 float(mu[0]), float(mu[1]), float(mu[2]), 1.0 / scale, sig, aux)
-    hh = scratch(work, "haar", (h, w, 5), np.float32)
-    _haar_cpu(sig, hh)
-    r7 = scratch(work, "rows7", (h, w, K.N_BOX7), np.float64)
-    _box_rows_cpu(sig, aux, 3, 2, r7)
-    r3 = scratch(work, "rows3", (h, w, K.N_BOX3), np.float64)
-    _box_rows_cpu(sig, aux, 1, 0, r3)
-    feat = scratch(work, "features", (h, w, K.N_FEATURES), np.float32)
-    _combine_cpu(sig, aux, hh, r7, r3, feat)
-    return variance, sig, feat

@@ -111,7 +111,7 @@ def effective_variance(color, variance):
 def features(color, variance, position, normal, albedo, vis=None, spp=None):
     """Effective variance (H, W, 3), signals (H, W, 13) and secondary features (H, W, 36).
 
-    As :func:`.features.extract_features`; signals and features are float64.
+    As the CPU backend (:class:`.cpu.Denoiser` with ``keep``); signals and features are float64.
     """
     variance = effective_variance(color, variance)
     sig, aux = signals(color, variance, position, normal, albedo, vis, spp)

@@ -2,6 +2,18 @@
 
 The RT filter with albedo and normal auxiliary images, HDR mode, quality ``fast`` by default
 (``high`` available). Needs the ``peers`` extra; listed as broken where pyoidn is missing.
+
+Range. OIDN's automatic exposure does not bring very dim images into its working range (an
+image of 1e-10 came back at about 8e-4), so the colour is first multiplied by a power of two
+``2**-k`` that brings its log-average luminance near 1 (exact in floating point; ``k`` within
++-126), filtered with OIDN's own exposure as before, and the output multiplied by ``2**k``: a
+constant image of 1e30 or 1e-30 comes back at its own level. No value is clamped to a fixed
+maximum.
+
+Invalid input (documented clamps, counted in :attr:`OIDN.repaired` after each call): OIDN's HDR
+mode takes non-negative radiance, so negative colour becomes 0, NaN 0 and +inf float32's
+largest value; albedo is limited to [0, 1] (NaN 0) and normals to [-1, 1] (NaN 0). Values
+that leave float32's range through the exposure scaling (input or output) are limited to it.
 """
 
 import importlib.util
@@ -16,6 +28,27 @@ if importlib.util.find_spec("pyoidn") is None:
     raise ImportError("the oidn filter needs pyoidn (pip install 'denoise-harness[peers]')")
 
 _QUALITY = ("fast", "balanced", "high")
+_F32_MAX = float(np.finfo(np.float32).max)
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def _sanitised(array, low, high):
+    """A float32 copy with NaN -> 0 and values limited to [low, high], and how many changed."""
+    out = np.nan_to_num(np.asarray(array, np.float32), nan=0.0, posinf=high, neginf=low)
+    np.clip(out, low, high, out=out)
+    changed = int(np.count_nonzero(out != array))
+    return out, changed
+
+
+def _exposure_exponent(rgb) -> int:
+    """``k`` such that ``rgb * 2**-k`` has a log-average luminance within a factor 2 of 1."""
+    lum = rgb @ _LUMA
+    lum = lum[(lum > 0.0) & (lum <= _F32_MAX)]
+    if lum.size == 0:
+        return 0
+    return int(min(max(round(float(np.mean(np.log2(lum.astype(np.float64))))), -126), 126))
+
+
 PARAMS = {"quality": Param("fast", choices=_QUALITY)}
 
 
@@ -26,6 +59,12 @@ class OIDN:
     ----------
     backend : {"cpu"}
     quality : {"fast", "balanced", "high"}
+
+    Attributes
+    ----------
+    repaired : int
+        Input values (colour, albedo, normal components) changed by the documented clamps in
+        the last call.
     """
 
     def __init__(self, backend="cpu", quality="fast"):
@@ -39,6 +78,7 @@ class OIDN:
         self.quality = quality
         self._device = pyoidn.Device()
         self._device.commit()
+        self.repaired = 0
 
     def reset(self):
         """Stateless."""
@@ -47,9 +87,15 @@ class OIDN:
         return OIDN(quality=self.quality)
 
     def __call__(self, frame, sampler=None):
-        color = np.ascontiguousarray(np.clip(frame["color"], 0.0, 6.0e4), np.float32)
-        albedo = np.ascontiguousarray(np.clip(frame["albedo"], 0.0, 1.0), np.float32)
-        normal = np.ascontiguousarray(frame["normal"], np.float32)
+        color, bad_color = _sanitised(frame["color"], 0.0, _F32_MAX)
+        albedo, bad_albedo = _sanitised(frame["albedo"], 0.0, 1.0)
+        normal, bad_normal = _sanitised(frame["normal"], -1.0, 1.0)
+        self.repaired = bad_color + bad_albedo + bad_normal
+        k = _exposure_exponent(color)
+        if k:
+            with np.errstate(over="ignore"):  # a value beyond float32 after scaling: limited
+                color *= np.float32(2.0**-k)
+            np.minimum(color, _F32_MAX, out=color)
         pyoidn = self._oidn
         out = np.zeros_like(color)
         filt = pyoidn.Filter(self._device, "RT")
@@ -62,7 +108,10 @@ class OIDN:
         filt.commit()
         filt.execute()
         filt.release()
-        return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+        if k:
+            with np.errstate(over="ignore"):  # beyond float32: limited below
+                out *= np.float32(2.0**k)
+        return np.nan_to_num(out, copy=False, nan=0.0, posinf=_F32_MAX, neginf=-_F32_MAX)
 
 
 @hookimpl

@@ -3,6 +3,13 @@
 ``cv2.ximgproc.jointBilateralFilter`` with a 9x9 window (d=9), the shading normal (mapped to
 [0, 1]) as the guide, and the noisy colour as the source. Needs opencv-contrib (the ``peers``
 extra); the plugin is listed as broken where it is not installed.
+
+Robustness: OpenCV builds a lookup table over the guide's value range, and crashes
+(segmentation fault) on a NaN or infinite guide value and returns non-finite output for a
+guide of 3.4e38. Normals are unit vectors, so the guide is clipped to [0, 1] (components
+outside [-1, 1] saturate) and a NaN component becomes 0.5 (a zero component). The colour is
+filtered as a scaled copy (divided by its largest magnitude) so that huge values stay finite
+in OpenCV's float32 arithmetic; negative colour is filtered as it is (signed values).
 """
 
 import cv2  # noqa: E402  (import failure marks this plugin broken, as intended)
@@ -45,7 +52,9 @@ class JointBilateral:
         scale = float(np.max(np.abs(color))) if color.size else 0.0
         scale = scale if np.isfinite(scale) and scale > 0 else 1.0
         src = np.ascontiguousarray(color / np.float32(scale), np.float32)
-        guide = np.ascontiguousarray(frame["normal"] * 0.5 + 0.5, np.float32)
+        guide = np.asarray(frame["normal"], np.float32) * np.float32(0.5) + np.float32(0.5)
+        np.clip(guide, 0.0, 1.0, out=guide)  # also turns +-inf into 1 and 0
+        np.nan_to_num(guide, copy=False, nan=0.5)
         out = cv2.ximgproc.jointBilateralFilter(guide, src, self.diameter, self.sigma_color, self.sigma_space)
         return np.ascontiguousarray(out.reshape(color.shape) * np.float32(scale), np.float32)
 

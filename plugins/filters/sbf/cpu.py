@@ -1,8 +1,25 @@
-"""CPU kernels of SBF (Numba): the candidate bank with its SURE, and smoothing + selection.
+"""CPU kernels of SBF (Numba): the whole pass (bank, SURE, smoothing, selection) streamed by rows.
 
-Images are planar float32 (C, H, W). Work is split into tiles of one row by ``BLOCK`` pixels;
-inner loops run along the row so that they vectorise. Sums are float64. Tiles without a noisy
-pixel are skipped (their pixels keep the input).
+Layout. Colour and features are planar float32 planes whose rows carry ``pad`` columns of
+zeros on both sides (:func:`.layout.pack`), so every tap of a window is an in-bounds load and
+the inner loops, which run along a row, vectorise without edge cases; a plane ``inside`` (1 in
+the image, 0 in the padding) zeroes the weights of taps outside the image, and a plane
+``valid`` (1 on noisy pixels) those that the SURE smoothing must ignore.
+
+Streaming. The image is processed in chunks of rows: the candidate bank of rows
+``[r, r + C)``, then the smoothing and selection of the rows whose SURE window is complete
+(``[r - R_s, r + C - R_s)``). Candidates and SURE live in ring buffers of ``C + 2 R_s`` rows
+(row ``i`` in slot ``i % rows``), so the scratch memory does not grow with the image height.
+
+Parallel loops. Inside a chunk, tiles of one row by ``BLOCK`` pixels are dealt cyclically to
+``slots`` workers (tile ``t`` to worker ``t % slots``), so each worker gets every other tile
+and neighbouring tiles (similar cost: both sky or both geometry) go to different workers; a
+static split into halves would give one worker all the sky.
+
+Arithmetic. Feature weights ``exp(-|f_i - f_j|^2)`` are float32 (:func:`.fastexp.exp_neg`,
+a few ulps); each candidate's four sums (weight, weighted RGB) add groups of ``GROUP``
+neighbouring taps in float32 and accumulate the groups in float64; SURE and its smoothing are
+float64. Tiles without a noisy pixel are skipped.
 """
 
 from __future__ import annotations
@@ -10,285 +27,342 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .fastexp import exp_neg
+
 BLOCK = 256
-# exp(-d) is evaluated as (exp(-d / 2^10))^(2^10), d clamped at 128 (exp(-128) < 3e-56)
-_EXP_CLAMP = 128.0
-_EXP_SCALE = 1.0 / 1024.0
+#: taps of a row summed together in one inner loop (fewer stores to the accumulators)
+GROUP = 4
 
 
 @njit(cache=True, fastmath=True)
-def exp_neg(d):
-    """``exp(-d)`` for ``d >= 0`` in float64 with mul/add only, so that loops vectorise.
-
-    A degree-7 Taylor polynomial on ``[-1/8, 0]`` and ten squarings; relative error < 2e-9
-    for ``d <= 128``, and ``exp(-128)`` for larger ``d``.
-    """
-    x = -min(d, _EXP_CLAMP) * _EXP_SCALE
-    p = 1.0 + x * (1.0 + x * (0.5 + x * (1.0 / 6.0 + x * (1.0 / 24.0 + x * (
-        1.0 / 120.0 + x * (1.0 / 720.0 + x * (1.0 / 5040.0)))))))
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    p = p * p
-    return p * p
-
-
-@njit(cache=True, fastmath=True)
-def _feature_distance(feat, i, ii, ja, dx, n, dist):
-    """``dist[:n] = |f(i, ja + j) - f(ii, ja + j + dx)|^2`` for j < n."""
-    for j in range(n):
-        dist[j] = 0.0
-    for c in range(feat.shape[0]):
-        # 1-D views indexed by a range variable: no negative-index wraparound, loops vectorise
-        a = feat[c, i, ja:ja + n]
-        b = feat[c, ii, ja + dx:ja + dx + n]
-        for j in range(n):
-            e = a[j] - b[j]
-            dist[j] += e * e
-
-
-@njit(cache=True)
-def _tile_is_noisy(noisy, i, j0, j1):
-    for j in range(j0, j1):
-        if noisy[i, j]:
+def _tile_has(mask, i, c0, c1):
+    for c in range(c0, c1):
+        if mask[i, c] > 0:
             return True
     return False
 
 
+@njit(cache=True, fastmath=True)
+def _weights(fpad, mask, i, ii, a, b, n, wt):
+    """``wt[:n] = exp(-|f(i, a + j) - f(ii, b + j)|^2) * mask[ii, b + j]`` (float32).
+
+    Seven feature planes (normal, albedo, depth); 1-D views indexed by the range variable so
+    that the loop vectorises.
+    """
+    fa0 = fpad[0, i, a:a + n]
+    fa1 = fpad[1, i, a:a + n]
+    fa2 = fpad[2, i, a:a + n]
+    fa3 = fpad[3, i, a:a + n]
+    fa4 = fpad[4, i, a:a + n]
+    fa5 = fpad[5, i, a:a + n]
+    fa6 = fpad[6, i, a:a + n]
+    fb0 = fpad[0, ii, b:b + n]
+    fb1 = fpad[1, ii, b:b + n]
+    fb2 = fpad[2, ii, b:b + n]
+    fb3 = fpad[3, ii, b:b + n]
+    fb4 = fpad[4, ii, b:b + n]
+    fb5 = fpad[5, ii, b:b + n]
+    fb6 = fpad[6, ii, b:b + n]
+    m = mask[ii, b:b + n]
+    for j in range(n):
+        e0 = fa0[j] - fb0[j]
+        e1 = fa1[j] - fb1[j]
+        e2 = fa2[j] - fb2[j]
+        e3 = fa3[j] - fb3[j]
+        e4 = fa4[j] - fb4[j]
+        e5 = fa5[j] - fb5[j]
+        e6 = fa6[j] - fb6[j]
+        d = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4 + e5 * e5 + e6 * e6
+        wt[j] = exp_neg(d) * m[j]
+
+
+@njit(cache=True, fastmath=True)
+def _bank_tile(cpad, fpad, inside, valid, var, table, first, radius, pad, i, j0, n,
+               acc, wb, cand, sure, slot):
+    """Candidates and SURE of the pixels ``(i, j0 .. j0 + n)``, written to ring slot ``slot``."""
+    n_k = table.shape[0]
+    big = (table.shape[1] - 1) // 2
+    h = cpad.shape[1]
+    acc[:, :, :n] = 0.0
+    a = pad + j0
+    for dy in range(-big, big + 1):
+        ii = i + dy
+        if ii < 0 or ii >= h:
+            continue
+        # weights and weighted colours of every tap of this row: wb[q, dx + big, j]
+        for dx in range(-big, big + 1):
+            b = a + dx
+            w0 = wb[0, dx + big]
+            _weights(fpad, inside, i, ii, a, b, n, w0)
+            w1 = wb[1, dx + big]
+            w2 = wb[2, dx + big]
+            w3 = wb[3, dx + big]
+            c0 = cpad[0, ii, b:b + n]
+            c1 = cpad[1, ii, b:b + n]
+            c2 = cpad[2, ii, b:b + n]
+            for j in range(n):
+                w1[j] = w0[j] * c0[j]
+                w2[j] = w0[j] * c1[j]
+                w3[j] = w0[j] * c2[j]
+        for k in range(first[abs(dy)], n_k):
+            r = radius[k]
+            row = table[k, dy + big]
+            for dx0 in range(-r, r + 1, GROUP):
+                q = dx0 + big
+                g0 = np.float32(row[q])
+                g1 = np.float32(row[q + 1])
+                g2 = np.float32(row[q + 2])
+                g3 = np.float32(row[q + 3])
+                for ch in range(4):
+                    s = acc[k, ch, :n]
+                    x0 = wb[ch, q, :n]
+                    x1 = wb[ch, q + 1, :n]
+                    x2 = wb[ch, q + 2, :n]
+                    x3 = wb[ch, q + 3, :n]
+                    for j in range(n):
+                        s[j] += np.float64(g0 * x0[j] + g1 * x1[j] + g2 * x2[j] + g3 * x3[j])
+    for j in range(n):
+        jj = j0 + j
+        for k in range(n_k):
+            if not valid[i, a + j] > 0:
+                for ch in range(3):
+                    cand[k, ch, slot, jj] = cpad[ch, i, a + j]
+                sure[k, slot, a + j] = 0.0
+                continue
+            wsum = acc[k, 0, j]  # >= 1: the centre tap
+            risk = 0.0
+            for ch in range(3):
+                f = acc[k, 1 + ch, j] / wsum
+                y = np.float64(cpad[ch, i, a + j])
+                v = np.float64(var[i, jj, ch])
+                cand[k, ch, slot, jj] = f
+                risk += (f - y) * (f - y) + 2.0 * v / wsum - v
+            sure[k, slot, a + j] = risk / 3.0
+
+
+@njit(cache=True, fastmath=True)
+def _select_tile(cpad, fpad, valid, stable, pad, i, j0, n, acc, ws, wt, wg, cand, sure,
+                 slot, out, best, min_sure):
+    """Smooth the SURE maps around ``(i, j0 .. j0 + n)``, pick the argmin, write the output."""
+    n_k = sure.shape[0]
+    rad = (stable.shape[0] - 1) // 2
+    h = fpad.shape[1]
+    rows = sure.shape[1]
+    a = pad + j0
+    acc[:, :n] = 0.0
+    ws[:n] = 0.0
+    for dy in range(-rad, rad + 1):
+        ii = i + dy
+        if ii < 0 or ii >= h:
+            continue
+        ring = ii % rows
+        for dx in range(-rad, rad + 1):
+            _weights(fpad, valid, i, ii, a, a + dx, n, wt)
+            g = stable[dy + rad, dx + rad]
+            x = wg[dx + rad]
+            for j in range(n):
+                x[j] = g * np.float64(wt[j])
+        for dx0 in range(-rad, rad + 1, GROUP):
+            q = dx0 + rad
+            x0 = wg[q, :n]
+            x1 = wg[q + 1, :n]
+            x2 = wg[q + 2, :n]
+            x3 = wg[q + 3, :n]
+            s = ws[:n]
+            for j in range(n):
+                s[j] += x0[j] + x1[j] + x2[j] + x3[j]
+            b = a + dx0
+            for k in range(n_k):
+                y0 = sure[k, ring, b:b + n]
+                y1 = sure[k, ring, b + 1:b + 1 + n]
+                y2 = sure[k, ring, b + 2:b + 2 + n]
+                y3 = sure[k, ring, b + 3:b + 3 + n]
+                s = acc[k, :n]
+                for j in range(n):
+                    s[j] += x0[j] * y0[j] + x1[j] * y1[j] + x2[j] * y2[j] + x3[j] * y3[j]
+    slot = i % rows
+    for j in range(n):
+        jj = j0 + j
+        pick = 0
+        low = 0.0
+        if valid[i, a + j] > 0:
+            norm = ws[j]  # >= 1: the centre tap
+            low = acc[0, j] / norm
+            for k in range(1, n_k):
+                value = acc[k, j] / norm
+                if value < low:
+                    low = value
+                    pick = k
+            for ch in range(3):
+                out[i, jj, ch] = cand[pick, ch, slot, jj]
+        else:
+            for ch in range(3):
+                out[i, jj, ch] = cpad[ch, i, a + j]
+        best[i, jj] = pick
+        min_sure[i, jj] = low
+
+
 @njit(parallel=True, cache=True, fastmath=True)
-def candidate_bank(color, var, feat, noisy, table, first, out_f, out_sure):
-    """Every candidate's filtered colour and per-pixel SURE.
+def sbf_pass(cpad, fpad, inside, valid, var, table, first, radius, stable, pad,
+             out, best, min_sure, cand, sure, slots):
+    """One SBF pass: candidate bank with SURE, SURE smoothing, per-pixel argmin.
 
     Parameters
     ----------
-    color, var : ndarray (3, H, W) float32
-        Noisy colour and variance of the pixel mean.
-    feat : ndarray (C, H, W) float32
-        Scaled guide features (:func:`.features.guide_features`).
-    noisy : ndarray (H, W) uint8
-        Pixels to filter; the others keep the input and get SURE 0.
-    table, first : ndarray
-        From :func:`.bank.spatial_table`.
-    out_f : ndarray (K, 3, H, W) float32
-        Filtered colour of each candidate (written).
-    out_sure : ndarray (K, H, W) float64
-        SURE of each candidate, mean over RGB (written).
+    cpad, fpad : ndarray (3, H, W + 2 pad), (7, H, W + 2 pad) float32
+        Padded planar colour and scaled features (:func:`.layout.pack`).
+    inside, valid : ndarray (H, W + 2 pad) float32
+        1 inside the image / on noisy pixels, 0 elsewhere (padding included).
+    var : ndarray (H, W, 3) float32
+        Variance of the pixel mean (>= 0, scaled like ``cpad``).
+    table : ndarray (K, 2R + 1, 2R + GROUP) float64
+        Spatial weights of the candidates (:func:`.bank.spatial_table`, zero columns appended).
+    first, radius : ndarray int64
+        First candidate reaching each ring; window radius of each candidate.
+    stable : ndarray (2 R_s + 1, 2 R_s + GROUP) float64
+        Spatial weights of the SURE smoothing, zero columns appended.
+    pad : int
+        Padding columns of the planes (at least ``max(R, R_s) + GROUP - 1``).
+    out : ndarray (H, W, 3) float32
+        The selected candidate per pixel, scaled like ``cpad`` (written).
+    best, min_sure : ndarray (H, W) int32, float64
+        Selected index (lowest on ties) and its smoothed SURE; 0 on noise-free pixels.
+    cand, sure : ndarray (K, 3, rows, W) float32, (K, rows, W + 2 pad) float64
+        Ring buffers of candidates and SURE (row ``i`` in slot ``i % rows``; with ``rows >= H``
+        they hold every row afterwards). ``rows >= 2 R_s + 1``. ``sure`` must start finite
+        (zeros).
+    slots : int
+        Parallel workers the tiles are dealt to.
     """
     n_k = table.shape[0]
     big = (table.shape[1] - 1) // 2
-    h, w = noisy.shape
+    rad = (stable.shape[0] - 1) // 2
+    h = out.shape[0]
+    w = out.shape[1]
+    rows = sure.shape[1]
+    chunk = max(rows - 2 * rad, 1)
     n_blocks = (w + BLOCK - 1) // BLOCK
-    for t in prange(h * n_blocks):
-        i = t // n_blocks
-        j0 = (t - i * n_blocks) * BLOCK
-        j1 = min(j0 + BLOCK, w)
-        acc = np.zeros((n_k, 4, BLOCK))
-        if _tile_is_noisy(noisy, i, j0, j1):
-            dist = np.empty(BLOCK, np.float32)
-            wgt = np.empty(BLOCK)
-            for dy in range(-big, big + 1):
-                ii = i + dy
-                if ii < 0 or ii >= h:
-                    continue
-                for dx in range(-big, big + 1):
-                    ja = max(j0, -dx)
-                    jb = min(j1, w - dx)
-                    if ja >= jb:
-                        continue
-                    n = jb - ja
-                    off = ja - j0
-                    _feature_distance(feat, i, ii, ja, dx, n, dist)
-                    c0 = color[0, ii, ja + dx:jb + dx]
-                    c1 = color[1, ii, ja + dx:jb + dx]
-                    c2 = color[2, ii, ja + dx:jb + dx]
-                    for j in range(n):
-                        wgt[j] = exp_neg(dist[j])
-                    for k in range(first[max(abs(dy), abs(dx))], n_k):
-                        g = table[k, dy + big, dx + big]
-                        a0 = acc[k, 0, off:off + n]
-                        a1 = acc[k, 1, off:off + n]
-                        a2 = acc[k, 2, off:off + n]
-                        a3 = acc[k, 3, off:off + n]
-                        for j in range(n):
-                            e = g * wgt[j]
-                            a0[j] += e * c0[j]
-                            a1[j] += e * c1[j]
-                            a2[j] += e * c2[j]
-                            a3[j] += e
-        for j in range(j0, j1):
-            for k in range(n_k):
-                if not noisy[i, j]:
-                    for ch in range(3):
-                        out_f[k, ch, i, j] = color[ch, i, j]
-                    out_sure[k, i, j] = 0.0
-                    continue
-                wsum = acc[k, 3, j - j0]  # >= 1: the centre tap
-                risk = 0.0
-                for ch in range(3):
-                    f = acc[k, ch, j - j0] / wsum
-                    y = np.float64(color[ch, i, j])
-                    v = np.float64(var[ch, i, j])
-                    out_f[k, ch, i, j] = f
-                    risk += (f - y) * (f - y) + 2.0 * v / wsum - v
-                out_sure[k, i, j] = risk / 3.0
+    start = 0  # next bank row
+    done = 0  # next selected row
+    while done < h:
+        stop = min(start + chunk, h)
+        items = (stop - start) * n_blocks
+        for s in prange(slots):
+            acc = np.empty((n_k, 4, BLOCK))
+            wb = np.zeros((4, 2 * big + GROUP, BLOCK), np.float32)
+            for t in range(s, items, slots):
+                i = start + t // n_blocks
+                j0 = (t % n_blocks) * BLOCK
+                n = min(BLOCK, w - j0)
+                slot = i % rows
+                if _tile_has(valid, i, pad + j0, pad + j0 + n):
+                    _bank_tile(cpad, fpad, inside, valid, var, table, first, radius,
+                               pad, i, j0, n, acc, wb, cand, sure, slot)
+                else:
+                    for j in range(j0, j0 + n):
+                        for k in range(n_k):
+                            for ch in range(3):
+                                cand[k, ch, slot, j] = cpad[ch, i, pad + j]
+                            sure[k, slot, pad + j] = 0.0
+        start = stop
+        last = h if start == h else max(start - rad, done)
+        items = (last - done) * n_blocks
+        for s in prange(slots):
+            acc = np.empty((n_k, BLOCK))
+            ws = np.empty(BLOCK)
+            wt = np.empty(BLOCK, np.float32)
+            wg = np.zeros((2 * rad + GROUP, BLOCK))
+            for t in range(s, items, slots):
+                i = done + t // n_blocks
+                j0 = (t % n_blocks) * BLOCK
+                n = min(BLOCK, w - j0)
+                if _tile_has(valid, i, pad + j0, pad + j0 + n):
+                    _select_tile(cpad, fpad, valid, stable, pad, i, j0, n, acc, ws, wt, wg,
+                                 cand, sure, i % rows, out, best, min_sure)
+                else:
+                    for j in range(j0, j0 + n):
+                        for ch in range(3):
+                            out[i, j, ch] = cpad[ch, i, pad + j]
+                        best[i, j] = 0
+                        min_sure[i, j] = 0.0
+        done = last
 
 
 @njit(parallel=True, cache=True, fastmath=True)
-def smooth_and_select(color, feat, noisy, table, f_bank, sure, out, best, min_sure):
-    """Smooth every SURE map with a feature-only cross-bilateral filter; take the argmin.
-
-    Parameters
-    ----------
-    color : ndarray (3, H, W) float32
-    feat : ndarray (C, H, W) float32
-    noisy : ndarray (H, W) uint8
-        Only noisy neighbours enter the smoothing; other pixels keep the input.
-    table : ndarray (2r+1, 2r+1) float64
-        Spatial weights of the smoothing filter.
-    f_bank : ndarray (K, 3, H, W) float32
-    sure : ndarray (K, H, W) float64
-    out : ndarray (3, H, W) float32
-        The selected candidate's colour (written).
-    best : ndarray (H, W) int32
-        Index of the selected candidate (lowest index on ties; written).
-    min_sure : ndarray (H, W) float64
-        The smoothed SURE of the selected candidate (written).
-    """
-    n_k = sure.shape[0]
-    rad = (table.shape[0] - 1) // 2
-    h, w = noisy.shape
-    n_blocks = (w + BLOCK - 1) // BLOCK
-    for t in prange(h * n_blocks):
-        i = t // n_blocks
-        j0 = (t - i * n_blocks) * BLOCK
-        j1 = min(j0 + BLOCK, w)
-        acc = np.zeros((n_k, BLOCK))
-        wsum = np.zeros(BLOCK)
-        if _tile_is_noisy(noisy, i, j0, j1):
-            dist = np.empty(BLOCK, np.float32)
-            wgt = np.empty(BLOCK)
-            for dy in range(-rad, rad + 1):
-                ii = i + dy
-                if ii < 0 or ii >= h:
-                    continue
-                for dx in range(-rad, rad + 1):
-                    ja = max(j0, -dx)
-                    jb = min(j1, w - dx)
-                    if ja >= jb:
-                        continue
-                    n = jb - ja
-                    off = ja - j0
-                    g = table[dy + rad, dx + rad]
-                    _feature_distance(feat, i, ii, ja, dx, n, dist)
-                    valid = noisy[ii, ja + dx:jb + dx]
-                    ws = wsum[off:off + n]
-                    for j in range(n):
-                        e = g * exp_neg(dist[j]) * valid[j]
-                        wgt[j] = e
-                        ws[j] += e
-                    for k in range(n_k):
-                        src = sure[k, ii, ja + dx:jb + dx]
-                        a = acc[k, off:off + n]
-                        for j in range(n):
-                            a[j] += wgt[j] * src[j]
-        for j in range(j0, j1):
-            pick = 0
-            low = 0.0
-            if noisy[i, j]:
-                norm = wsum[j - j0]  # >= 1: the centre tap
-                low = acc[0, j - j0] / norm
-                for k in range(1, n_k):
-                    value = acc[k, j - j0] / norm
-                    if value < low:
-                        low = value
-                        pick = k
-                for ch in range(3):
-                    out[ch, i, j] = f_bank[pick, ch, i, j]
-            else:
-                for ch in range(3):
-                    out[ch, i, j] = color[ch, i, j]
-            best[i, j] = pick
-            min_sure[i, j] = low
-
-
-@njit(parallel=True, cache=True, fastmath=True)
-def spatial_variance(color, feat, radius, unknown, out):
+def spatial_variance(cpad, fpad, inside, unknown, radius, pad, out, slots):
     """Estimate the per-sample colour variance from a feature-weighted neighbourhood.
 
     For each pixel with ``unknown`` set, the unbiased weighted variance
     ``sum w (y - m)^2 / (sum w - sum w^2 / sum w)`` over the ``(2 radius + 1)^2`` window, with
-    feature weights ``exp(-|f_i - f_j|^2)``, is written to ``out[:, i, j]`` (float32, clamped
+    feature weights ``exp(-|f_i - f_j|^2)``, is written to ``out[i, j, :]`` (float32, clamped
     to the float32 range); 0 where the window holds no other pixel of the same surface.
 
     Parameters
     ----------
-    color : ndarray (3, H, W) float32
-    feat : ndarray (C, H, W) float32
-    radius : int
+    cpad, fpad, inside : ndarray
+        As in :func:`sbf_pass`.
     unknown : ndarray (H, W) uint8
-    out : ndarray (3, H, W) float32
+    radius, pad : int
+        Window radius (at most ``pad - GROUP + 1``) and padding of the planes.
+    out : ndarray (H, W, 3) float32
         Written where ``unknown``; left as is elsewhere.
+    slots : int
+        Parallel workers the rows are dealt to (cyclically).
     """
     h, w = unknown.shape
     big = np.float64(np.finfo(np.float32).max)
     n_blocks = (w + BLOCK - 1) // BLOCK
-    for t in prange(h * n_blocks):
-        i = t // n_blocks
-        j0 = (t - i * n_blocks) * BLOCK
-        j1 = min(j0 + BLOCK, w)
-        if not _tile_is_noisy(unknown, i, j0, j1):
-            continue
+    items = h * n_blocks
+    for s in prange(slots):
         # rows: sum w, sum w^2, sum w y (RGB), sum w y^2 (RGB)
-        acc = np.zeros((8, BLOCK))
-        dist = np.empty(BLOCK, np.float32)
-        for dy in range(-radius, radius + 1):
-            ii = i + dy
-            if ii < 0 or ii >= h:
+        acc = np.empty((8, BLOCK))
+        wt = np.empty(BLOCK, np.float32)
+        for t in range(s, items, slots):
+            i = t // n_blocks
+            j0 = (t % n_blocks) * BLOCK
+            n = min(BLOCK, w - j0)
+            if not _tile_has(unknown, i, j0, j0 + n):
                 continue
-            for dx in range(-radius, radius + 1):
-                ja = max(j0, -dx)
-                jb = min(j1, w - dx)
-                if ja >= jb:
+            acc[:, :n] = 0.0
+            a = pad + j0
+            for dy in range(-radius, radius + 1):
+                ii = i + dy
+                if ii < 0 or ii >= h:
                     continue
-                n = jb - ja
-                off = ja - j0
-                _feature_distance(feat, i, ii, ja, dx, n, dist)
-                c0 = color[0, ii, ja + dx:jb + dx]
-                c1 = color[1, ii, ja + dx:jb + dx]
-                c2 = color[2, ii, ja + dx:jb + dx]
-                sw = acc[0, off:off + n]
-                sw2 = acc[1, off:off + n]
-                s0 = acc[2, off:off + n]
-                s1 = acc[3, off:off + n]
-                s2 = acc[4, off:off + n]
-                q0 = acc[5, off:off + n]
-                q1 = acc[6, off:off + n]
-                q2 = acc[7, off:off + n]
-                for j in range(n):
-                    e = exp_neg(dist[j])
-                    y0 = np.float64(c0[j])
-                    y1 = np.float64(c1[j])
-                    y2 = np.float64(c2[j])
-                    sw[j] += e
-                    sw2[j] += e * e
-                    s0[j] += e * y0
-                    s1[j] += e * y1
-                    s2[j] += e * y2
-                    q0[j] += e * y0 * y0
-                    q1[j] += e * y1 * y1
-                    q2[j] += e * y2 * y2
-        for j in range(j0, j1):
-            if not unknown[i, j]:
-                continue
-            a = acc[:, j - j0]
-            denom = a[0] - a[1] / a[0]  # a[0] >= 1: the centre tap
-            for ch in range(3):
-                v = 0.0
-                if denom > 1e-3:
-                    v = min(max(a[5 + ch] - a[2 + ch] * a[2 + ch] / a[0], 0.0) / denom, big)
-                out[ch, i, j] = v
+                for dx in range(-radius, radius + 1):
+                    b = a + dx
+                    _weights(fpad, inside, i, ii, a, b, n, wt)
+                    c0 = cpad[0, ii, b:b + n]
+                    c1 = cpad[1, ii, b:b + n]
+                    c2 = cpad[2, ii, b:b + n]
+                    sw = acc[0, :n]
+                    sw2 = acc[1, :n]
+                    s0 = acc[2, :n]
+                    s1 = acc[3, :n]
+                    s2 = acc[4, :n]
+                    q0 = acc[5, :n]
+                    q1 = acc[6, :n]
+                    q2 = acc[7, :n]
+                    for j in range(n):
+                        e = np.float64(wt[j])
+                        y0 = np.float64(c0[j])
+                        y1 = np.float64(c1[j])
+                        y2 = np.float64(c2[j])
+                        sw[j] += e
+                        sw2[j] += e * e
+                        s0[j] += e * y0
+                        s1[j] += e * y1
+                        s2[j] += e * y2
+                        q0[j] += e * y0 * y0
+                        q1[j] += e * y1 * y1
+                        q2[j] += e * y2 * y2
+            for j in range(n):
+                if not unknown[i, j0 + j]:
+                    continue
+                denom = acc[0, j] - acc[1, j] / acc[0, j]  # acc[0] >= 1: the centre tap
+                for ch in range(3):
+                    v = 0.0
+                    if denom > 1e-3:
+                        m2 = acc[5 + ch, j] - acc[2 + ch, j] * acc[2 + ch, j] / acc[0, j]
+                        v = min(max(m2, 0.0) / denom, big)
+                    out[i, j0 + j, ch] = v

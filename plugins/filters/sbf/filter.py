@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import copy
 import time
 
 import numpy as np
 
+from harness import load_backend
+
 from .adaptive import allocate, sampling_weight, split_budget
 from .params import SBFParams
-from .pipeline import kernels, run_sbf
+from .pipeline import run_sbf
+
+BACKENDS = ("cpu", "cuda")
 
 
 class SBFFilter:
@@ -30,16 +35,23 @@ class SBFFilter:
         The mode the last call ran in: ``adaptive`` needs a sampler, and falls back to
         ``fixed`` (filtering the given frame) when called with ``sampler=None``.
     last_result : SBFResult
-        The final pass of the last call (candidates, SURE maps, selection).
+        The final pass of the last call (selection, variance; every candidate and SURE map
+        too when ``keep_candidates`` is set).
+    keep_candidates : bool
+        Keep every candidate and per-pixel SURE map of the last pass in ``last_result`` (full
+        frames: 180 bytes per pixel for the paper's bank; off by default, the kernels then
+        stream them through ring buffers of a few rows).
     """
 
     def __init__(self, backend: str = "cpu", **params):
         unknown = sorted(set(params) - set(SBFParams.__dataclass_fields__))
         if unknown:
             raise TypeError(f"sbf: unknown parameter(s) {unknown}")
-        kernels(backend)  # fails early on a bad backend name or a missing numba.cuda
+        self.kernels = load_backend(__package__, backend, BACKENDS, owner="sbf")
         self.backend = backend
         self.params = SBFParams(**params)
+        self.keep_candidates = False
+        self._work: dict = {}
         self.stage_ms: dict = {}
         self.samples_added = 0
         self.last_mode = self.params.mode
@@ -48,12 +60,21 @@ class SBFFilter:
     def reset(self) -> None:
         """SBF keeps no history."""
 
+    def __deepcopy__(self, memo):
+        """A deep copy that shares the backend module (modules cannot be copied)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        for name, value in self.__dict__.items():
+            if name != "kernels":
+                setattr(new, name, copy.deepcopy(value, memo))
+        return new
+
     def __call__(self, frame, sampler=None) -> np.ndarray:
         if self.params.mode == "adaptive" and sampler is not None:
             return self._adaptive(frame, sampler)
         self.last_mode = "fixed"
         self.samples_added = 0
-        self.last_result = run_sbf(frame, self.params, self.backend)
+        self.last_result = self._pass(frame)
         self.stage_ms = dict(self.last_result.stage_ms)
         return self.last_result.output
 
@@ -74,13 +95,13 @@ class SBFFilter:
         totals: dict = {}
         budget = int(round(p.extra_spp * frame.height * frame.width))
         for part in split_budget(budget, p.passes):
-            result = run_sbf(current, p, self.backend)
+            result = self._pass(current)
             _add_stages(totals, result.stage_ms)
             t0 = time.perf_counter_ns()
             spp = current["spp"].astype(np.int64)
             room = (np.maximum(p.max_spp_per_pixel - spp, 0) if p.max_spp_per_pixel > 0
                     else np.full(frame.shape, part, np.int64))
-            noisy = (result.variance > 0).any(axis=0)
+            noisy = (result.variance > 0).any(axis=-1)
             room = room * noisy if noisy.any() else room  # noise-free pixels need no samples
             minimum = 1 if part >= int(np.count_nonzero(room)) else 0
             spp_map = allocate(sampling_weight(result.min_sure, result.output), part, room, minimum)
@@ -91,10 +112,14 @@ class SBFFilter:
             self.samples_added += int(spp_map.sum())
             guides = {n: current[n] for n in ("normal", "albedo", "depth") if n not in added}
             current = added.replace(**guides) if guides else added
-        self.last_result = run_sbf(current, p, self.backend)
+        self.last_result = self._pass(current)
         _add_stages(totals, self.last_result.stage_ms)
         self.stage_ms = totals
         return self.last_result.output
+
+
+    def _pass(self, frame):
+        return run_sbf(frame, self.params, self.kernels, self._work, keep=self.keep_candidates)
 
 
 def _add_stages(totals: dict, stages: dict) -> None:

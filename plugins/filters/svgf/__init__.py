@@ -26,7 +26,7 @@ def register_filters():
             version=VERSION,
             factory=make_filter,
             requires={"color", "albedo", "normal", "depth", "object_id", "motion"},
-            optional={"direct", "indirect", "emission"},
+            optional={"indirect", "emission"},
             temporal=True,
             backends=("cpu", "cuda"),
             params=DECLARED,

@@ -10,7 +10,8 @@ A 5x5 B3-spline kernel with holes (step ``2^i``), weighted by
 with the variance prefiltered by a 3x3 Gaussian (:func:`.variance.prefiltered_variance`),
 and the variance is filtered alongside: ``Var' = sum (h w)^2 Var / (sum h w)^2``. The centre
 tap always has weight ``h(0)^2 > 0``, so every normalisation is safe. Background pixels are
-skipped (neither written as centre nor used as taps).
+skipped (neither written as centre nor used as taps). Variances, luminances and the luminance
+weight's inverse scale are bounded as in the CPU backend's float32 pool (:mod:`.weights`).
 """
 
 from __future__ import annotations
@@ -20,7 +21,13 @@ import math
 from numba import njit
 
 from .variance import prefiltered_variance
-from .weights import b3_tap, depth_distance, expneg, luminance, neg_log_series
+from .weights import INV_MAX, LUM_MAX, VAR_MAX, b3_tap, depth_distance, expneg, luminance, neg_log_series
+
+
+@njit(cache=True, inline="always")
+def _bounded_luminance(sig, s, y, x):
+    """Luminance of signal ``s`` at (y, x), limited to +-LUM_MAX."""
+    return min(max(luminance(sig[s, 0, y, x], sig[s, 1, y, x], sig[s, 2, y, x]), -LUM_MAX), LUM_MAX)
 
 
 @njit(cache=True, inline="always")
@@ -59,13 +66,13 @@ def atrous_pixel(i, j, step, sig, var, valid, depth, normal, grad,
     nx = normal[0, i, j]
     ny = normal[1, i, j]
     nz = normal[2, i, j]
-    lp0 = luminance(sig[0, 0, i, j], sig[0, 1, i, j], sig[0, 2, i, j])
-    il0 = 1.0 / (sigma_l * math.sqrt(prefiltered_variance(var, valid, 0, i, j)) + lum_eps)
+    lp0 = _bounded_luminance(sig, 0, i, j)
+    il0 = min(1.0 / (sigma_l * math.sqrt(prefiltered_variance(var, valid, 0, i, j)) + lum_eps), INV_MAX)
     lp1 = 0.0
     il1 = 0.0
     if two:
-        lp1 = luminance(sig[1, 0, i, j], sig[1, 1, i, j], sig[1, 2, i, j])
-        il1 = 1.0 / (sigma_l * math.sqrt(prefiltered_variance(var, valid, 1, i, j)) + lum_eps)
+        lp1 = _bounded_luminance(sig, 1, i, j)
+        il1 = min(1.0 / (sigma_l * math.sqrt(prefiltered_variance(var, valid, 1, i, j)) + lum_eps), INV_MAX)
     w0 = 0.0
     r0 = 0.0
     g0 = 0.0
@@ -98,22 +105,22 @@ def atrous_pixel(i, j, step, sig, var, valid, depth, normal, grad,
             q1 = sig[0, 1, y, x]
             q2 = sig[0, 2, y, x]
             centre = kx == 0 and ky == 0
-            wt = geo if centre else geo * expneg(-(dist + abs(lp0 - luminance(q0, q1, q2)) * il0))
+            wt = geo if centre else geo * expneg(-(dist + abs(lp0 - _bounded_luminance(sig, 0, y, x)) * il0))
             w0 += wt
             r0 += wt * q0
             g0 += wt * q1
             b0 += wt * q2
-            v0 += wt * wt * var[0, y, x]
+            v0 += wt * wt * min(var[0, y, x], VAR_MAX)
             if two:
                 q0 = sig[1, 0, y, x]
                 q1 = sig[1, 1, y, x]
                 q2 = sig[1, 2, y, x]
-                wt = geo if centre else geo * expneg(-(dist + abs(lp1 - luminance(q0, q1, q2)) * il1))
+                wt = geo if centre else geo * expneg(-(dist + abs(lp1 - _bounded_luminance(sig, 1, y, x)) * il1))
                 w1 += wt
                 r1 += wt * q0
                 g1 += wt * q1
                 b1 += wt * q2
-                v1 += wt * wt * var[1, y, x]
+                v1 += wt * wt * min(var[1, y, x], VAR_MAX)
     inv = 1.0 / w0
     sig_out[0, 0, i, j] = r0 * inv
     sig_out[0, 1, i, j] = g0 * inv

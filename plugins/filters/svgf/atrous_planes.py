@@ -6,21 +6,27 @@ laid out for LLVM's loop vectorizer:
 * **One pool.** Every plane an iteration reads (surface mask, depth, depth slope, normal, and
   each signal's colour, variance and luminance) lies in one flat float32 array,
   :class:`PlanePool`, one plane after the other; the iterations ping-pong between two slots of
-  signal planes in it. A tap loop then loads from
-  one array and updates one small per-thread array of accumulators, so the vectorizer needs a
-  single run-time aliasing test instead of giving up over dozens.
-* **Padding.** Planes have a zero border of ``2**iterations`` columns (the largest tap offset)
-  and a row stride that is an odd multiple of 16 floats, so a tap never needs a column bounds
-  test (a tap in the border has mask 0, hence weight 0) and every loop runs over a multiple
-  of 16 pixels; rows outside the image are skipped a whole tap row at a time.
-* **Chunks.** Each thread filters ``CHUNK`` pixels of a row at a time: per tap, one
-  branch-free loop computes the depth/normal part of the weight that the signals share, then
-  one loop per signal the luminance weight and the five sums (weight, colour, squared-weight
-  variance). Rows are dealt to the threads interleaved, so sky at the top of the image does
-  not leave one thread idle.
-
-Variance planes are float32 and clamped at ``VAR_MAX`` when packed (a sum of 25 weighted
-variances then stays finite); colour and weight sums are float32 (25 terms).
+  signal planes in it. A tap loop loads from one array and updates one small per-thread array
+  of accumulators; the parallel loop body creates no array view, so Numba marks both
+  ``noalias`` and LLVM vectorizes without run-time aliasing tests.
+* **Padding.** Planes have a zero border of ``2**iterations`` rows and columns (the largest tap
+  offset) and a row stride that is an odd multiple of 16 floats, so a tap never needs a bounds
+  test (a tap in the border has mask 0, hence weight 0) and every loop runs over a multiple of
+  16 pixels.
+* **Mirrored pairs.** The 24 taps around the centre form 12 pairs ``q = p + o``, ``q' = p - o``.
+  The depth weight's denominator ``sigma_z |grad z(p) . o| + eps`` is the same for both, so a
+  pair costs one reciprocal; a pair's loop also loads the centre's values once for two taps and
+  updates the sums once (half the accumulator traffic of one loop per tap).
+* **Chunks.** Each thread filters ``CHUNK`` pixels of a row at a time: per pair, one
+  branch-free loop computes the depth/normal part of the two weights that the signals share,
+  then one loop per signal the luminance weights and the five sums (weight, colour,
+  squared-weight variance). Rows are dealt to the threads interleaved, so sky at the top of
+  the image does not leave one thread idle.
+* **Bounded values.** Colour is at most 1e37 in magnitude (:mod:`.modulation`), variances are
+  clamped at ``VAR_MAX``, luminances at ``LUM_MAX`` and the luminance weight's inverse scale at
+  ``INV_MAX`` (:mod:`.weights`; the per-pixel definition applies the same bounds), so every
+  exponent and sum is finite: the inner loops need no overflow guard (``fastmath`` lets LLVM
+  assume there is no infinity).
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import math
 import numpy as np
 from numba import njit, prange, uint64
 
-from .weights import b3_tap, expneg, gauss3_tap, neg_log_series
+from .weights import INV_MAX, LUM_MAX, VAR_MAX, b3_tap, expneg, gauss3_tap, neg_log_series
 
 #: pixels of a row filtered together (the accumulators of a chunk stay in L1)
 CHUNK = 256
@@ -40,27 +46,27 @@ MASK, DEPTH, SLOPE_X, SLOPE_Y, DEPTH_EPS, NORMAL_X, NORMAL_Y, NORMAL_Z = range(8
 GEOMETRY_PLANES = 8
 #: planes per signal and slot: red, green, blue, luminance variance, luminance
 SIGNAL_PLANES = 5
-#: variances are clamped here when packed into float32 (25 x VAR_MAX stays finite)
-VAR_MAX = 1.0e36
+#: slopes and depth epsilons are clamped here (with depths of at most 1e30: a finite ratio)
+SLOPE_MAX = 1.0e30
+#: the mirrored tap pairs: (ky, kx) of the tap ``p + (ky, kx) step``; the other is ``p - ...``
+PAIRS = tuple((ky, kx) for ky in range(0, 3) for kx in range(-2, 3) if ky > 0 or kx > 0)
 _LR = np.float32(0.2126)
 _LG = np.float32(0.7152)
 _LB = np.float32(0.0722)
 _TINY = np.float32(1e-20)
 _ARG_MAX = np.float32(1024.0)
-_F32_MAX = np.float32(3.0e38)
 _ZERO = np.float32(0.0)
 _ONE = np.float32(1.0)
 # regions (of CHUNK floats) of a thread's scratch array, as flat offsets: per signal the sums
-# (weight, red, green, blue, variance) and the centre's terms (luminance, inverse luminance
-# scale, luminance difference limit), signal 1's regions _SIGNAL_1 after signal 0's; then the
-# prefilter's weight sum, and the current tap's shared weight factor and exponent. Flat indices
-# are uint64 throughout (no wraparound tests; Numba turns a mix of int64 and uint64 into
-# float64, so every constant added to one is uint64 too).
-_OW, _OR, _OG, _OB, _OV, _OLP, _OIL, _OLIM = (np.uint64(k * CHUNK) for k in range(8))
-_SIGNAL_1 = np.uint64(8 * CHUNK)
-_OPDEN = np.uint64(16 * CHUNK)
-_OM = np.uint64(17 * CHUNK)
-_ODR = np.uint64(18 * CHUNK)
+# (weight, red, green, blue, variance) and the centre's luminance and inverse luminance scale,
+# signal 1's regions _SIGNAL_1 after signal 0's; then the prefilter's weight sum, and the
+# current pair's weight factors and exponents. Flat indices are uint64 throughout (no
+# wraparound tests; Numba turns a mix of int64 and uint64 into float64, so every constant
+# added to one is uint64 too).
+_OW, _OR, _OG, _OB, _OV, _OLP, _OIL = (np.uint64(k * CHUNK) for k in range(7))
+_SIGNAL_1 = np.uint64(7 * CHUNK)
+_OPDEN = np.uint64(14 * CHUNK)
+_OMA, _ODA, _OMB, _ODB = (np.uint64(k * CHUNK) for k in range(15, 19))
 _REGIONS = 19
 
 
@@ -85,11 +91,11 @@ class PlanePool:
     height, width : int
         Image size.
     iterations : int
-        Number of à-trous iterations; the border is ``2**iterations`` columns.
+        Number of à-trous iterations; the border is ``2**iterations`` rows and columns.
 
     Attributes
     ----------
-    planes : ndarray (planes * height * stride,) float32
+    planes : ndarray (planes * plane_size,) float32
         Geometry planes, then slot 0 and slot 1 of the signal planes, one after the other; the
         borders hold zeros and every value ever written is finite.
     plane_size, halo, stride : int
@@ -100,13 +106,19 @@ class PlanePool:
         self.key = (nsig, height, width, iterations)
         self.halo = 1 << iterations
         self.stride = padded_stride(width, self.halo)
-        self.plane_size = height * self.stride
+        self.plane_size = (height + 2 * self.halo) * self.stride
         count = GEOMETRY_PLANES + 2 * SIGNAL_PLANES * nsig
         self.planes = np.zeros(count * self.plane_size, np.float32)
 
     def signal_plane(self, slot: int, signal: int = 0) -> int:
         """Index of the first (red) plane of ``signal`` in ``slot``."""
         return GEOMETRY_PLANES + (slot * self.key[0] + signal) * SIGNAL_PLANES
+
+    def interior(self, plane: int) -> np.ndarray:
+        """The image part of plane ``plane`` as an (H, W) view."""
+        _, h, w, _ = self.key
+        rows = self.planes[plane * self.plane_size:(plane + 1) * self.plane_size].reshape(-1, self.stride)
+        return rows[self.halo:self.halo + h, self.halo:self.halo + w]
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
@@ -133,17 +145,15 @@ def pack_planes(valid, depth, normal, grad, sig, var, sigma_z, depth_eps, halo, 
     """
     nsig = sig.shape[0]
     h, w = valid.shape
-    sz = np.float32(sigma_z)
-    de = np.float32(depth_eps)
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
-        row = i * stride + halo
+        row = (i + halo) * stride + halo
         for j in range(w):
             planes[MASK * plane_size + row + j] = np.float32(valid[i, j] != 0)
             planes[DEPTH * plane_size + row + j] = depth[i, j]
-            planes[SLOPE_X * plane_size + row + j] = sz * grad[0, i, j]
-            planes[SLOPE_Y * plane_size + row + j] = sz * grad[1, i, j]
-            planes[DEPTH_EPS * plane_size + row + j] = de * abs(depth[i, j]) + _TINY
+            planes[SLOPE_X * plane_size + row + j] = min(max(sigma_z * grad[0, i, j], -SLOPE_MAX), SLOPE_MAX)
+            planes[SLOPE_Y * plane_size + row + j] = min(max(sigma_z * grad[1, i, j], -SLOPE_MAX), SLOPE_MAX)
+            planes[DEPTH_EPS * plane_size + row + j] = min(depth_eps * abs(depth[i, j]), SLOPE_MAX) + _TINY
             planes[NORMAL_X * plane_size + row + j] = normal[0, i, j]
             planes[NORMAL_Y * plane_size + row + j] = normal[1, i, j]
             planes[NORMAL_Z * plane_size + row + j] = normal[2, i, j]
@@ -155,14 +165,14 @@ def pack_planes(valid, depth, normal, grad, sig, var, sigma_z, depth_eps, halo, 
             for j in range(w):
                 planes[base + 3 * plane_size + j] = np.float32(min(var[s, i, j], VAR_MAX))
             for j in range(w):
-                planes[base + 4 * plane_size + j] = (_LR * sig[s, 0, i, j] + _LG * sig[s, 1, i, j]
-                                                     + _LB * sig[s, 2, i, j])
+                lum = _LR * sig[s, 0, i, j] + _LG * sig[s, 1, i, j] + _LB * sig[s, 2, i, j]
+                planes[base + 4 * plane_size + j] = min(max(lum, -LUM_MAX), LUM_MAX)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
-def _centre_terms(pool, acc, ps, nsig, h, i, cb, n, stride, src, sl, le):
-    """Per signal, the centre's luminance, ``1 / (sigma_l sqrt(g3x3(Var)) + eps)`` and the
-    largest luminance difference that enters a weight, into the scratch regions; zero sums.
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _centre_terms(pool, acc, ps, nsig, cb, n, stride, src, sl, le):
+    """Per signal, the centre's luminance and ``1 / (sigma_l sqrt(g3x3(Var)) + eps)`` (at most
+    ``INV_MAX``) into the scratch regions; zero sums.
 
     ``g3x3`` is the 3x3 Gaussian of the variance over surface neighbours (numerators summed in
     the luminance region first, the weight sum in ``_OPDEN``). ``ps`` is the plane size, ``src``
@@ -175,9 +185,6 @@ def _centre_terms(pool, acc, ps, nsig, h, i, cb, n, stride, src, sl, le):
         for j in range(n):
             acc[r + _OLP + j] = _ZERO
     for dy in range(-1, 2):
-        y = i + dy
-        if y < 0 or y >= h:
-            continue
         for dx in range(-1, 2):
             q0 = uint64(np.int64(cb) + dy * stride + dx)
             g = np.float32(gauss3_tap(dy) * gauss3_tap(dx))
@@ -193,9 +200,7 @@ def _centre_terms(pool, acc, ps, nsig, h, i, cb, n, stride, src, sl, le):
         r = uint64(s) * _SIGNAL_1
         for j in range(n):
             pv = acc[r + _OLP + j] / max(acc[_OPDEN + j], _TINY)
-            den = sl * math.sqrt(pv) + le
-            acc[r + _OIL + j] = _ONE / den
-            acc[r + _OLIM + j] = min(_ARG_MAX * den, _F32_MAX)
+            acc[r + _OIL + j] = min(_ONE / (sl * math.sqrt(pv) + le), np.float32(INV_MAX))
             acc[r + _OLP + j] = pool[oc + uint64(4) * ps + j]
             acc[r + _OW + j] = _ZERO
             acc[r + _OR + j] = _ZERO
@@ -204,86 +209,76 @@ def _centre_terms(pool, acc, ps, nsig, h, i, cb, n, stride, src, sl, le):
             acc[r + _OV + j] = _ZERO
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
-def _add_tap(pool, acc, r, oc, ps, q, j, m, dr):
-    """Add neighbour ``q`` of a signal (scratch regions from ``r``, red plane at flat offset
-    ``oc``) to the sums of chunk pixel ``j``: ``m`` is the tap's kernel weight times its mask
-    and normal cut-off, ``dr`` the depth and normal part of the exponent."""
-    k = r + j
-    c0 = pool[oc + q]
-    c1 = pool[oc + ps + q]
-    c2 = pool[oc + ps + ps + q]
-    lq = pool[oc + uint64(4) * ps + q]
-    wt = m * expneg(-(dr + min(abs(acc[k + _OLP] - lq), acc[k + _OLIM]) * acc[k + _OIL]))
-    acc[k + _OW] += wt
-    acc[k + _OR] += wt * c0
-    acc[k + _OG] += wt * c1
-    acc[k + _OB] += wt * c2
-    acc[k + _OV] += wt * wt * pool[oc + ps + ps + ps + q]
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _add_centre(pool, acc, r, oc, ps, cb, n, hk):
+    """The centre tap of a signal: weight ``h(0)^2`` times the mask exactly (no edge stop)."""
+    o1 = ps
+    o2 = o1 + ps
+    o3 = o2 + ps
+    for j in range(n):
+        p = cb + j
+        m = hk * pool[p]
+        k = r + j
+        acc[k + _OW] += m
+        acc[k + _OR] += m * pool[oc + p]
+        acc[k + _OG] += m * pool[oc + o1 + p]
+        acc[k + _OB] += m * pool[oc + o2 + p]
+        acc[k + _OV] += m * m * pool[oc + o3 + p]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
-def _add_centre(pool, acc, r, oc, ps, p, j, m):
-    """The centre tap of a signal: weight ``m`` exactly (no luminance term)."""
-    k = r + j
-    acc[k + _OW] += m
-    acc[k + _OR] += m * pool[oc + p]
-    acc[k + _OG] += m * pool[oc + ps + p]
-    acc[k + _OB] += m * pool[oc + ps + ps + p]
-    acc[k + _OV] += m * m * pool[oc + ps + ps + ps + p]
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _pair_geometry(pool, acc, ps, cb, qa, qb, n, dxf, dyf, hk, sn):
+    """For taps ``qa = p + o`` and ``qb = p - o`` of ``n`` centres from ``cb``: the weight
+    factors shared by the signals (kernel tap times mask times normal cut-off) and the depth and
+    normal part of the exponent (``|z_p - z_q| / (|slope(p) . o| + eps(p)) + sigma_n (-ln n_p.n_q)``)."""
+    onx = uint64(NORMAL_X) * ps
+    ony = uint64(NORMAL_Y) * ps
+    onz = uint64(NORMAL_Z) * ps
+    oz = uint64(DEPTH) * ps
+    osx = uint64(SLOPE_X) * ps
+    osy = uint64(SLOPE_Y) * ps
+    oe = uint64(DEPTH_EPS) * ps
+    for j in range(n):
+        p = cb + j
+        a = qa + j
+        b = qb + j
+        nx = pool[onx + p]
+        ny = pool[ony + p]
+        nz = pool[onz + p]
+        zp = pool[oz + p]
+        inv = _ONE / (abs(pool[osx + p] * dxf + pool[osy + p] * dyf) + pool[oe + p])
+        da = nx * pool[onx + a] + ny * pool[ony + a] + nz * pool[onz + a]
+        db = nx * pool[onx + b] + ny * pool[ony + b] + nz * pool[onz + b]
+        acc[_OMA + j] = hk * pool[a] * np.float32(da > _ZERO)  # the mask is plane 0
+        acc[_OMB + j] = hk * pool[b] * np.float32(db > _ZERO)
+        acc[_ODA + j] = min(abs(zp - pool[oz + a]) * inv, _ARG_MAX) + sn * neg_log_series(da)
+        acc[_ODB + j] = min(abs(zp - pool[oz + b]) * inv, _ARG_MAX) + sn * neg_log_series(db)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
-def _geometry(pool, og, p, q, dxf, dyf, sn):
-    """Weight factors of tap ``q`` (offset ``(dxf, dyf)``) for centre ``p`` shared by the signals:
-    (mask times normal cut-off, depth distance + sigma_n (-ln n_p . n_q)); ``og`` holds the
-    geometry planes' flat offsets."""
-    onx, ony, onz, oz, osx, osy, oe = og
-    d = pool[onx + p] * pool[onx + q] + pool[ony + p] * pool[ony + q] + pool[onz + p] * pool[onz + q]
-    m = pool[q] * np.float32(d > _ZERO)  # the mask is plane 0
-    zp = pool[oz + p]
-    den = abs(pool[osx + p] * dxf + pool[osy + p] * dyf) + pool[oe + p]
-    dr = min(abs(zp - pool[oz + q]) / den, _ARG_MAX) + sn * neg_log_series(d)
-    return m, dr
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
+def _add_pair(pool, acc, r, oc, ps, qa, qb, n):
+    """Add taps ``qa`` and ``qb`` of a signal (scratch regions from ``r``, red plane at flat
+    offset ``oc``) to the sums of ``n`` centres, with the factors of :func:`_pair_geometry`."""
+    o1 = ps
+    o2 = o1 + ps
+    o3 = o2 + ps
+    o4 = o3 + ps
+    for j in range(n):
+        k = r + j
+        a = oc + qa + j
+        b = oc + qb + j
+        lp = acc[k + _OLP]
+        il = acc[k + _OIL]
+        wa = acc[_OMA + j] * expneg(-(acc[_ODA + j] + abs(lp - pool[o4 + a]) * il))
+        wb = acc[_OMB + j] * expneg(-(acc[_ODB + j] + abs(lp - pool[o4 + b]) * il))
+        acc[k + _OW] += wa + wb
+        acc[k + _OR] += wa * pool[a] + wb * pool[b]
+        acc[k + _OG] += wa * pool[o1 + a] + wb * pool[o1 + b]
+        acc[k + _OB] += wa * pool[o2 + a] + wb * pool[o2 + b]
+        acc[k + _OV] += wa * wa * pool[o3 + a] + wb * wb * pool[o3 + b]
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
-def _filter_chunk(pool, acc, ps, nsig, h, i, cb, n, stride, step, src, sn, sl, le):
-    """The 25 taps of ``n`` pixels of row ``i`` from flat pixel index ``cb`` into the sums."""
-    _centre_terms(pool, acc, ps, nsig, h, i, cb, n, stride, src, sl, le)
-    o0 = uint64(src) * ps
-    o1 = uint64(src + SIGNAL_PLANES) * ps
-    og = (uint64(NORMAL_X) * ps, uint64(NORMAL_Y) * ps, uint64(NORMAL_Z) * ps, uint64(DEPTH) * ps,
-          uint64(SLOPE_X) * ps, uint64(SLOPE_Y) * ps, uint64(DEPTH_EPS) * ps)
-    r0 = uint64(0)
-    for ky in range(-2, 3):
-        y = i + ky * step
-        if y < 0 or y >= h:
-            continue
-        for kx in range(-2, 3):
-            hk = np.float32(b3_tap(ky) * b3_tap(kx))
-            if kx == 0 and ky == 0:
-                for j in range(n):
-                    _add_centre(pool, acc, r0, o0, ps, cb + j, j, hk * pool[cb + j])
-                if nsig == 2:
-                    for j in range(n):
-                        _add_centre(pool, acc, _SIGNAL_1, o1, ps, cb + j, j, hk * pool[cb + j])
-                continue
-            q0 = uint64(np.int64(cb) + (ky * stride + kx) * step)
-            dxf = np.float32(kx * step)
-            dyf = np.float32(ky * step)
-            for j in range(n):
-                m, dr = _geometry(pool, og, cb + j, q0 + j, dxf, dyf, sn)
-                acc[_OM + j] = hk * m
-                acc[_ODR + j] = dr
-            for j in range(n):
-                _add_tap(pool, acc, r0, o0, ps, q0 + j, j, acc[_OM + j], acc[_ODR + j])
-            if nsig == 2:
-                for j in range(n):
-                    _add_tap(pool, acc, _SIGNAL_1, o1, ps, q0 + j, j, acc[_OM + j], acc[_ODR + j])
-
-
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, fastmath=True, error_model="numpy", inline="always")
 def _write_chunk(pool, acc, ps, nsig, cb, n, dst, store, sig_out, i, xa):
     """Normalise the sums of ``n`` pixels into the output slot (0 off the surface) and, if
     ``store``, into ``sig_out``."""
@@ -293,12 +288,15 @@ def _write_chunk(pool, acc, ps, nsig, cb, n, dst, store, sig_out, i, xa):
         for j in range(n):
             # the centre tap has weight h(0)^2 > 0 on the surface; off it every sum is 0
             inv = pool[cb + j] / max(acc[r + _OW + j], _TINY)
-            pool[od + j] = acc[r + _OR + j] * inv
-            pool[od + ps + j] = acc[r + _OG + j] * inv
-            pool[od + ps + ps + j] = acc[r + _OB + j] * inv
+            c0 = acc[r + _OR + j] * inv
+            c1 = acc[r + _OG + j] * inv
+            c2 = acc[r + _OB + j] * inv
+            pool[od + j] = c0
+            pool[od + ps + j] = c1
+            pool[od + ps + ps + j] = c2
             pool[od + ps + ps + ps + j] = acc[r + _OV + j] * inv * inv
-            pool[od + uint64(4) * ps + j] = (_LR * pool[od + j] + _LG * pool[od + ps + j]
-                                             + _LB * pool[od + ps + ps + j])
+            lum = _LR * c0 + _LG * c1 + _LB * c2
+            pool[od + uint64(4) * ps + j] = min(max(lum, np.float32(-LUM_MAX)), np.float32(LUM_MAX))
         if store:
             for c in range(3):
                 oc = od + uint64(c) * ps
@@ -334,11 +332,14 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
     sl = np.float32(sigma_l)
     le = np.float32(lum_eps)
     psu = uint64(ps)
+    o0 = uint64(src) * psu
+    o1 = uint64(src + SIGNAL_PLANES) * psu
+    hc = np.float32(b3_tap(0) * b3_tap(0))
     nbands = max(min(h, 16 * nthreads), 1)
     for band in prange(nbands):
         acc = np.empty(_REGIONS * CHUNK, np.float32)
         for i in range(np.int64(band), h, nbands):
-            row = i * stride + halo
+            row = (i + halo) * stride + halo
             # the chunks run from the first to the last surface pixel of the row
             jlo = w
             jhi = 0
@@ -349,11 +350,23 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
             x0 = jlo - jlo % 16
             x1 = x0
             for xa in range(x0, jhi, CHUNK):
-                n = min(CHUNK, -(-(jhi - xa) // 16) * 16)
-                _filter_chunk(pool, acc, psu, nsig, h, i, uint64(row + xa), uint64(n), stride, step, src,
-                              sn, sl, le)
-                x1 = min(xa + n, w)
-                _write_chunk(pool, acc, psu, nsig, uint64(row + xa), uint64(x1 - xa), dst, store, sig_out, i, xa)
+                n = uint64(min(CHUNK, -(-(jhi - xa) // 16) * 16))
+                cb = uint64(row + xa)
+                _centre_terms(pool, acc, psu, nsig, cb, n, stride, src, sl, le)
+                _add_centre(pool, acc, uint64(0), o0, psu, cb, n, hc)
+                if nsig == 2:
+                    _add_centre(pool, acc, _SIGNAL_1, o1, psu, cb, n, hc)
+                for ky, kx in PAIRS:
+                    off = (ky * stride + kx) * step
+                    qa = uint64(np.int64(cb) + off)
+                    qb = uint64(np.int64(cb) - off)
+                    _pair_geometry(pool, acc, psu, cb, qa, qb, n, np.float32(kx * step), np.float32(ky * step),
+                                   np.float32(b3_tap(ky) * b3_tap(kx)), sn)
+                    _add_pair(pool, acc, uint64(0), o0, psu, qa, qb, n)
+                    if nsig == 2:
+                        _add_pair(pool, acc, _SIGNAL_1, o1, psu, qa, qb, n)
+                x1 = min(xa + np.int64(n), w)
+                _write_chunk(pool, acc, psu, nsig, cb, uint64(x1 - xa), dst, store, sig_out, i, xa)
             if store:
                 for s in range(nsig):
                     for c in range(3):

@@ -18,13 +18,13 @@ from .variance_rows import variance_rows
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _prepare(first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in, obj_in,
+def _prepare(color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in, obj_in,
              motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad):
     h, w = depth_in.shape
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
         for j in range(w):
-            prepare_pixel(i, j, first, second, nsig, emission, has_emission, albedo_in, normal_in,
+            prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in, normal_in,
                           depth_in, obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal,
                           obj, motion)
     for r in prange(h):
@@ -56,12 +56,11 @@ def _remodulate(sig, albedo, valid, color, emission, has_emission, out):
             remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, out)
 
 
-class CpuOps:
+class Ops:
     """Array allocation and stage launches of the ``cpu`` backend (NumPy arrays, Numba loops)."""
 
     def __init__(self):
         self._pool = None
-
 
     def empty(self, shape, dtype):
         """An uninitialised host array."""

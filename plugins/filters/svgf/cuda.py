@@ -45,11 +45,11 @@ _remodulate_px = _device(remodulate_pixel)
 
 
 @cuda.jit
-def _prepare_kernel(first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+def _prepare_kernel(color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
                     obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion):
     j, i = cuda.grid(2)
     if i < depth_in.shape[0] and j < depth_in.shape[1]:
-        _prepare_px(i, j, first, second, nsig, emission, has_emission, albedo_in, normal_in,
+        _prepare_px(i, j, color, indirect, nsig, emission, has_emission, albedo_in, normal_in,
                     depth_in, obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal,
                     obj, motion)
 
@@ -76,11 +76,11 @@ def _reproject_kernel(sig, valid, depth, normal, obj, grad, motion, prev_sig, pr
 
 @cuda.jit
 def _variance_kernel(mom, hist, valid, depth, normal, grad, variance_frames, sigma_z, sigma_n,
-                     sigma_n_int, depth_eps, var):
+                     depth_eps, var):
     j, i = cuda.grid(2)
     if i < valid.shape[0] and j < valid.shape[1]:
         _variance_px(i, j, mom, hist, valid, depth, normal, grad, variance_frames, sigma_z,
-                     sigma_n, sigma_n_int, depth_eps, var)
+                     sigma_n, depth_eps, var)
 
 
 @cuda.jit
@@ -106,13 +106,8 @@ def _grid(h, w):
     return ((w + _BLOCK[0] - 1) // _BLOCK[0], (h + _BLOCK[1] - 1) // _BLOCK[1])
 
 
-class CudaOps:
+class Ops:
     """Array allocation and stage launches of the ``cuda`` backend (device arrays)."""
-
-
-    def __init__(self):
-        if not cuda.is_available():
-            raise RuntimeError("svgf: backend 'cuda' needs a CUDA GPU or NUMBA_ENABLE_CUDASIM=1")
 
     def empty(self, shape, dtype):
         """An uninitialised device array."""
@@ -130,11 +125,11 @@ class CudaOps:
         """Wait for every launched kernel."""
         cuda.synchronize()
 
-    def prepare(self, first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+    def prepare(self, color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
                 obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad):
         """Demodulate, convert the G-buffer to planar layouts, compute the depth gradient."""
         g = _grid(*depth_in.shape)
-        _prepare_kernel[g, _BLOCK](first, second, nsig, emission, has_emission, albedo_in,
+        _prepare_kernel[g, _BLOCK](color, indirect, nsig, emission, has_emission, albedo_in,
                                    normal_in, depth_in, obj_in, motion_in, albedo_eps, sig, albedo,
                                    valid, depth, normal, obj, motion)
         _gradient_kernel[g, _BLOCK](depth, valid, grad)

@@ -1,7 +1,12 @@
 """Per-pixel input preparation (albedo demodulation, planar G-buffer) and remodulation.
 
 Planar layouts: signals ``(S, 3, H, W)``, normals ``(3, H, W)``, motion ``(2, H, W)``. ``S`` is 2
-when the frame carries ``direct`` and ``indirect`` (filtered separately), else 1 (``color``).
+when the frame carries ``indirect`` (filtered separately from the rest of the light), else 1.
+
+Bad input is made harmless here, in the pass that reads it anyway (the rules are listed in the
+README): a pixel with a negative object id, a non-finite depth, or a zero or non-finite normal
+is background; non-finite radiance counts as 0; a NaN albedo as 1; motion that is not finite
+points outside the image (no history).
 """
 
 from __future__ import annotations
@@ -12,22 +17,34 @@ from numba import njit
 
 #: demodulated values are clamped to this magnitude so that sums of a few of them stay finite in float32
 F32_BIG = 1.0e37
+#: depths are clamped to this magnitude (differences, slopes and tolerances stay finite)
+DEPTH_MAX = 1.0e30
+#: the largest albedo used for demodulation (+inf and huge values)
+ALBEDO_MAX = 1.0e6
 
 
 @njit(cache=True, inline="always")
-def prepare_pixel(i, j, first, second, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+def finite_or_zero(x):
+    """``x`` where it is finite, else 0."""
+    return x if math.isfinite(x) else 0.0
+
+
+@njit(cache=True, inline="always")
+def prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
                   obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion):
     """Demodulate pixel (i, j) and write its planar G-buffer.
 
-    The first signal is demodulated as ``(first - emission) / max(albedo, albedo_eps)`` (the
-    emitted radiance is direct light and is not filtered; :func:`remodulate_pixel` adds it back).
+    ``color`` is the authority: with two signals the first is ``color - indirect - emission``
+    (the direct light when the split is consistent) and the second ``indirect``; with one, the
+    first is ``color - emission``. Each is divided by ``max(albedo, albedo_eps)``. The emitted
+    radiance is not filtered: :func:`remodulate_pixel` adds it back.
 
     Parameters
     ----------
     i, j : int
         Row and column.
-    first, second : ndarray (H, W, 3) float32
-        The signals (``direct`` and ``indirect``, or ``color`` twice with ``nsig == 1``).
+    color, indirect : ndarray (H, W, 3) float32
+        The frame's radiance and its indirect part (``indirect`` is read only when ``nsig == 2``).
     nsig : int
         Number of signals, 1 or 2.
     emission : ndarray (H, W, 3) float32
@@ -48,22 +65,34 @@ def prepare_pixel(i, j, first, second, nsig, emission, has_emission, albedo_in, 
     w = depth_in.shape[1]
     z = depth_in[i, j]
     oid = obj_in[i, j]
-    ok = oid >= 0 and math.isfinite(z)
+    n0 = normal_in[i, j, 0]
+    n1 = normal_in[i, j, 1]
+    n2 = normal_in[i, j, 2]
+    ok = (oid >= 0 and math.isfinite(z) and math.isfinite(n0) and math.isfinite(n1) and math.isfinite(n2)
+          and (n0 != 0.0 or n1 != 0.0 or n2 != 0.0))
     valid[i, j] = 1 if ok else 0
     obj[i, j] = oid
-    depth[i, j] = z if ok else 0.0
+    depth[i, j] = min(max(z, -DEPTH_MAX), DEPTH_MAX) if ok else 0.0
+    normal[0, i, j] = min(max(n0, -1.0), 1.0) if ok else 0.0
+    normal[1, i, j] = min(max(n1, -1.0), 1.0) if ok else 0.0
+    normal[2, i, j] = min(max(n2, -1.0), 1.0) if ok else 0.0
     lim = float(h + w + 4)
-    motion[0, i, j] = min(max(motion_in[i, j, 0], -lim), lim)
-    motion[1, i, j] = min(max(motion_in[i, j, 1], -lim), lim)
+    for k in range(2):
+        m = motion_in[i, j, k]
+        motion[k, i, j] = min(max(m, -lim), lim) if m == m else lim  # NaN: outside, no history
     for c in range(3):
-        normal[c, i, j] = normal_in[i, j, c] if ok else 0.0
-        a = max(albedo_in[i, j, c], albedo_eps)
+        a = albedo_in[i, j, c]
+        a = 1.0 if a != a else min(max(a, albedo_eps), ALBEDO_MAX)
         albedo[c, i, j] = a
         if ok:
-            e = emission[i, j, c] if has_emission else 0.0
-            sig[0, c, i, j] = min(max((first[i, j, c] - e) / a, -F32_BIG), F32_BIG)
+            # float64 arithmetic (also under the CUDA simulator: no float32 overflow warning)
+            e = float(finite_or_zero(emission[i, j, c])) if has_emission else 0.0
+            rest = float(finite_or_zero(color[i, j, c])) - e
             if nsig == 2:
-                sig[1, c, i, j] = min(max(second[i, j, c] / a, -F32_BIG), F32_BIG)
+                ind = float(finite_or_zero(indirect[i, j, c]))
+                rest -= ind
+                sig[1, c, i, j] = min(max(ind / a, -F32_BIG), F32_BIG)
+            sig[0, c, i, j] = min(max(rest / a, -F32_BIG), F32_BIG)
         else:
             for s in range(nsig):
                 sig[s, c, i, j] = 0.0
@@ -79,12 +108,12 @@ def remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, ou
     sig : ndarray (S, 3, H, W) float32
         Filtered demodulated signals.
     albedo : ndarray (3, H, W) float32
-        ``max(albedo, albedo_eps)`` from :func:`prepare_pixel`.
+        The albedo used by :func:`prepare_pixel`.
     valid : ndarray (H, W) uint8
     color : ndarray (H, W, 3) float32
         The input colour (copied on background pixels).
     emission : ndarray (H, W, 3) float32
-        Emitted radiance added back unfiltered (read only when ``has_emission``).
+        Emitted radiance added back unfiltered (read only when ``has_emission``; not finite: 0).
     has_emission : bool
     out : ndarray (H, W, 3) float32
     """
@@ -96,5 +125,5 @@ def remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, ou
         acc = 0.0
         for s in range(sig.shape[0]):
             acc += sig[s, c, i, j]
-        e = emission[i, j, c] if has_emission else 0.0
+        e = finite_or_zero(emission[i, j, c]) if has_emission else 0.0
         out[i, j, c] = min(max(albedo[c, i, j] * acc + e, -F32_BIG), F32_BIG)

@@ -168,9 +168,3 @@ class SVGFParams:
             bad("depth_tolerance", "must be >= 0")
         if not -1.0 <= self.normal_tolerance <= 1.0:
             bad("normal_tolerance", "must be in [-1, 1]")
-
-    @property
-    def sigma_n_int(self) -> int:
-        """``sigma_n`` as an integer exponent (fast repeated squaring), or -1 if not integral."""
-        s = self.sigma_n
-        return int(s) if float(s).is_integer() and s <= 4096 else -1

@@ -5,20 +5,47 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from numba import get_num_threads, set_num_threads
+
+from harness import load_backend
 
 from .params import SVGFParams
 
+#: the backends, each a module of this package with an ``Ops`` class (array allocation, copies
+#: and the stage launches: ``prepare``, ``reproject``, ``variance``, ``atrous``, ``remodulate``)
+BACKENDS = ("cpu", "cuda")
+#: below this many pixels the CPU backend runs on one thread: each of a frame's ten parallel
+#: regions otherwise waits for the pool's threads (milliseconds each on a loaded machine)
+SERIAL_MAX_PIXELS = 256 * 256
 
-def _make_ops(backend: str):
-    if backend == "cpu":
-        from .cpu import CpuOps
 
-        return CpuOps()
-    if backend == "cuda":
-        from .cuda import CudaOps
+def _frame_set(ops, nsig: int, h: int, w: int) -> dict:
+    """The arrays of one frame that become the next frame's history."""
+    return {
+        "valid": ops.empty((h, w), np.uint8),
+        "depth": ops.empty((h, w), np.float32),
+        "normal": ops.empty((3, h, w), np.float32),
+        "obj": ops.empty((h, w), np.int32),
+        "mom": ops.empty((nsig, 2, h, w), np.float64),
+        "hist": ops.empty((h, w), np.float32),
+        "acc_sig": ops.empty((nsig, 3, h, w), np.float32),
+        "feedback": ops.empty((nsig, 3, h, w), np.float32),
+    }
 
-        return CudaOps()
-    raise ValueError(f"svgf: unsupported backend {backend!r}; choose 'cpu' or 'cuda'")
+
+def _scratch(ops, nsig: int, h: int, w: int) -> dict:
+    """Arrays used within one frame only."""
+    return {
+        "sig": ops.empty((nsig, 3, h, w), np.float32),
+        "albedo": ops.empty((3, h, w), np.float32),
+        "motion": ops.empty((2, h, w), np.float32),
+        "grad": ops.empty((2, h, w), np.float32),
+        "var": ops.empty((nsig, h, w), np.float64),
+        "sig_a": ops.empty((nsig, 3, h, w), np.float32),
+        "sig_b": ops.empty((nsig, 3, h, w), np.float32),
+        "var_a": ops.empty((nsig, h, w), np.float64),
+        "var_b": ops.empty((nsig, h, w), np.float64),
+    }
 
 
 class SVGF:
@@ -38,63 +65,69 @@ class SVGF:
 
     Notes
     -----
-    Frames with ``direct`` and ``indirect`` are filtered as two signals (each demodulated by
-    the albedo) unless ``separate_lighting=False``, others as one (``color``). With an
-    ``emission`` channel the emitted radiance is subtracted from ``color`` (or ``direct``)
-    before demodulation and added back, unfiltered, after remodulation. History is
-    dropped on :meth:`reset`, when a frame's ``meta.camera_cut`` is set, and when the size or
-    the number of signals changes.
+    ``color`` is the authority. Frames with ``indirect`` are filtered as two signals (each
+    demodulated by the albedo): ``indirect`` and ``color - indirect`` (the direct light when the
+    split is consistent), unless ``separate_lighting=False``; others as one (``color``). With an
+    ``emission`` channel the emitted radiance is subtracted from ``color`` before demodulation
+    and added back, unfiltered, after remodulation. History is dropped on :meth:`reset`, when a
+    frame's ``meta.camera_cut`` is set, and when the size or the number of signals changes.
+    All arrays are kept between frames of one size (two sets for the history, used in turn);
+    each call returns a new output array.
     """
 
     def __init__(self, backend: str = "cpu", **params):
         self.params = SVGFParams.from_kwargs(**params)
         self.backend = backend
-        self._ops = _make_ops(backend)
-        self._history = None
+        self._ops = load_backend(__package__, backend, BACKENDS, owner="svgf").Ops()
+        self._key = None
+        self._sets = None  # two frame sets: the current frame's and the history
+        self._scratch = None
+        self._previous = None  # index of the set holding the history, None without history
         self._last_variance = None
         self.stage_ms: dict = {}
 
     def reset(self) -> None:
         """Forget all history (new sequence or camera cut)."""
-        self._history = None
+        self._previous = None
 
-    def _allocate(self, nsig: int, h: int, w: int) -> dict:
-        ops = self._ops
-        f32, f64 = np.float32, np.float64
-        return {
-            "sig": ops.empty((nsig, 3, h, w), f32),
-            "albedo": ops.empty((3, h, w), f32),
-            "valid": ops.empty((h, w), np.uint8),
-            "depth": ops.empty((h, w), f32),
-            "normal": ops.empty((3, h, w), f32),
-            "obj": ops.empty((h, w), np.int32),
-            "motion": ops.empty((2, h, w), f32),
-            "grad": ops.empty((2, h, w), f32),
-            "acc_sig": ops.empty((nsig, 3, h, w), f32),
-            "mom": ops.empty((nsig, 2, h, w), f64),
-            "hist": ops.empty((h, w), f32),
-            "var": ops.empty((nsig, h, w), f64),
-            "sig_b": ops.empty((nsig, 3, h, w), f32),
-            "var_b": ops.empty((nsig, h, w), f64),
-            "var_c": ops.empty((nsig, h, w), f64),
-            "out": ops.empty((h, w, 3), f32),
-        }
+    def _buffers(self, nsig: int, h: int, w: int):
+        """This frame's set, the history's set (or None) and the scratch; all are allocated
+        again (and the history dropped) when the size or the number of signals changes."""
+        if self._key != (nsig, h, w):
+            ops = self._ops
+            self._key = (nsig, h, w)
+            self._sets = [_frame_set(ops, nsig, h, w), _frame_set(ops, nsig, h, w)]
+            self._scratch = _scratch(ops, nsig, h, w)
+            self._previous = None
+        if self._previous is None:
+            return 0, None, self._scratch
+        return 1 - self._previous, self._sets[self._previous], self._scratch
 
     def __call__(self, frame, sampler=None) -> np.ndarray:
         """Filter one frame of a sequence; returns (H, W, 3) float32."""
+        threads = get_num_threads()
+        serial = self.backend == "cpu" and frame.height * frame.width < SERIAL_MAX_PIXELS and threads > 1
+        if serial:
+            set_num_threads(1)
+        try:
+            return self._filter(frame)
+        finally:
+            if serial:
+                set_num_threads(threads)
+
+    def _filter(self, frame) -> np.ndarray:
         p = self.params
         ops = self._ops
         h, w = frame.height, frame.width
-        nsig = 2 if (p.separate_lighting and "direct" in frame and "indirect" in frame) else 1
+        nsig = 2 if (p.separate_lighting and "indirect" in frame) else 1
         if frame.meta.camera_cut:
             self.reset()
-        prev = self._history
-        if prev is not None and prev["feedback"].shape != (nsig, 3, h, w):
-            prev = self._history = None
-        cur = self._allocate(nsig, h, w)
-        if prev is None:
-            prev = {k: cur[k] for k in ("valid", "depth", "normal", "obj")}
-            prev.update(feedback=cur["acc_sig"], mom=cur["mom"], hist=cur["hist"])
+        index, prev, tmp = self._buffers(nsig, h, w)
+        cur = self._sets[index]
+        has_prev = prev is not None
+        prev = prev if has_prev else cur  # not read without history
+        # the colour history: the accumulated colour, or the output of an à-trous iteration
+        fb = "acc_sig" if p.feedback_iteration == -1 else "feedback"
         times = {}
         ops.synchronize()
         t_start = t = time.perf_counter()
@@ -107,62 +140,53 @@ class SVGF:
             t = now
 
         color = ops.upload(frame["color"])
-        first = ops.upload(frame["direct"]) if nsig == 2 else color
-        second = ops.upload(frame["indirect"]) if nsig == 2 else color
+        indirect = ops.upload(frame["indirect"]) if nsig == 2 else color
         has_emission = "emission" in frame
         # without the channel a 1x1 stand-in keeps one compiled signature (it is never read)
         emission = ops.upload(frame["emission"] if has_emission else np.zeros((1, 1, 3), np.float32))
-        ops.prepare(first, second, nsig, emission, has_emission, ops.upload(frame["albedo"]),
+        ops.prepare(color, indirect, nsig, emission, has_emission, ops.upload(frame["albedo"]),
                     ops.upload(frame["normal"]), ops.upload(frame["depth"]), ops.upload(frame["object_id"]),
-                    ops.upload(frame["motion"]), p.albedo_epsilon, cur["sig"], cur["albedo"],
-                    cur["valid"], cur["depth"], cur["normal"], cur["obj"], cur["motion"], cur["grad"])
+                    ops.upload(frame["motion"]), p.albedo_epsilon, tmp["sig"], tmp["albedo"],
+                    cur["valid"], cur["depth"], cur["normal"], cur["obj"], tmp["motion"], tmp["grad"])
         lap("prepare")
-        ops.reproject(cur["sig"], cur["valid"], cur["depth"], cur["normal"], cur["obj"], cur["grad"],
-                      cur["motion"], prev["feedback"], prev["mom"], prev["hist"], prev["valid"],
-                      prev["depth"], prev["normal"], prev["obj"], self._history is not None,
+        ops.reproject(tmp["sig"], cur["valid"], cur["depth"], cur["normal"], cur["obj"], tmp["grad"],
+                      tmp["motion"], prev[fb], prev["mom"], prev["hist"], prev["valid"],
+                      prev["depth"], prev["normal"], prev["obj"], has_prev,
                       p.depth_tolerance, p.normal_tolerance, p.alpha_color, p.alpha_moments,
                       bool(p.history_average), p.max_history, cur["acc_sig"], cur["mom"], cur["hist"])
         lap("reprojection")
-        ops.variance(cur["mom"], cur["hist"], cur["valid"], cur["depth"], cur["normal"], cur["grad"],
-                     p.variance_frames, p.sigma_z, p.sigma_n, p.sigma_n_int, p.depth_epsilon,
-                     cur["var"])
+        ops.variance(cur["mom"], cur["hist"], cur["valid"], cur["depth"], cur["normal"], tmp["grad"],
+                     p.variance_frames, p.sigma_z, p.sigma_n, p.depth_epsilon, tmp["var"])
         lap("variance")
-        # ping-pong through free buffers; the feedback buffer is kept for the next frame
-        src, feedback = cur["acc_sig"], None
-        free = [cur["sig_b"], cur["sig"]]  # the demodulated input is not needed any more
-        if p.feedback_iteration == -1:
-            feedback = src
-        var, var_free = cur["var"], [cur["var_b"], cur["var_c"]]
+        src, var = cur["acc_sig"], tmp["var"]
         for it in range(p.iterations):
-            dst, var_dst = free.pop(0), var_free.pop(0)
+            if it == p.feedback_iteration:
+                dst = cur["feedback"]
+            else:
+                dst = tmp["sig_b"] if src is tmp["sig_a"] else tmp["sig_a"]
+            var_dst = tmp["var_b"] if var is tmp["var_a"] else tmp["var_a"]
             # the signals of the feedback and the last iteration are read afterwards
             keep = it == p.feedback_iteration or it == p.iterations - 1
             ops.atrous(it, p.iterations, src, var, cur["valid"], cur["depth"], cur["normal"],
-                       cur["grad"], p.sigma_z, p.sigma_n, p.sigma_l, p.depth_epsilon,
+                       tmp["grad"], p.sigma_z, p.sigma_n, p.sigma_l, p.depth_epsilon,
                        p.luminance_epsilon, dst, var_dst, keep)
-            if it == p.feedback_iteration:
-                feedback = dst
-            if src is not feedback:
-                free.append(src)
-            if var is not cur["var"]:
-                var_free.append(var)
             src, var = dst, var_dst
             lap(f"atrous_{it}")
-        ops.remodulate(src, cur["albedo"], cur["valid"], color, emission, has_emission, cur["out"])
-        out = ops.download(cur["out"])
+        out = ops.empty((h, w, 3), np.float32)
+        ops.remodulate(src, tmp["albedo"], cur["valid"], color, emission, has_emission, out)
+        out = ops.download(out)
         lap("remodulate")
         times["total"] = (time.perf_counter() - t_start) * 1e3
         self.stage_ms = times
-        self._history = {k: cur[k] for k in ("mom", "hist", "valid", "depth", "normal", "obj")}
-        self._history["feedback"] = feedback
-        self._last_variance = cur["var"]
+        self._previous = index
+        self._last_variance = tmp["var"]
         return np.ascontiguousarray(out, dtype=np.float32)
 
     def history_length(self) -> np.ndarray | None:
         """History length (frames) of every pixel after the last call, (H, W) float32."""
-        if self._history is None:
+        if self._previous is None:
             return None
-        return np.array(self._ops.download(self._history["hist"]), dtype=np.float32)
+        return np.array(self._ops.download(self._sets[self._previous]["hist"]), dtype=np.float32)
 
     def variance_estimate(self) -> np.ndarray | None:
         """Luminance variance of each demodulated signal estimated in the last call, before

@@ -2,8 +2,9 @@
 
 Schied et al. 2017, section 4.2: ``sigma^2 = mu2 - mu1^2`` from the accumulated moments once a
 pixel has ``variance_frames`` frames of history; before that the moments are averaged over a
-7x7 neighbourhood with depth and normal edge-stopping weights (the depth weight's
-exponential by :func:`.weights.expneg`, as in the à-trous iterations). Variances are float64 (squared
+7x7 neighbourhood with depth and normal edge-stopping weights, evaluated as in the à-trous
+iterations: ``w_z w_n = expneg(-(depth distance + sigma_n (-ln n_p . n_q)))`` with
+:func:`.weights.expneg` and :func:`.weights.neg_log_series`. Variances are float64 (squared
 luminances of large inputs overflow float32) and clamped at zero.
 """
 
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from .weights import depth_distance, expneg, gauss3_tap, normal_power
+from .weights import VAR_MAX, depth_distance, expneg, gauss3_tap, neg_log_series
 
 #: radius of the spatial variance estimate (7x7)
 SPATIAL_RADIUS = 3
@@ -19,7 +20,7 @@ SPATIAL_RADIUS = 3
 
 @njit(cache=True, inline="always")
 def variance_pixel(i, j, mom, hist, valid, depth, normal, grad, variance_frames,
-                   sigma_z, sigma_n, sigma_n_int, depth_eps, var):
+                   sigma_z, sigma_n, depth_eps, var):
     """Luminance variance of every signal at pixel (i, j).
 
     Parameters
@@ -32,7 +33,7 @@ def variance_pixel(i, j, mom, hist, valid, depth, normal, grad, variance_frames,
         Planar G-buffer and depth gradient.
     variance_frames : float
         Spatial estimate where ``hist < variance_frames``.
-    sigma_z, sigma_n, sigma_n_int, depth_eps : float, float, int, float
+    sigma_z, sigma_n, depth_eps : float
         Edge-stopping parameters (see :mod:`.weights`).
     var : ndarray (S, H, W) float64
         Output.
@@ -71,10 +72,10 @@ def variance_pixel(i, j, mom, hist, valid, depth, normal, grad, variance_frames,
                     wt = 1.0
                 else:
                     d = nx * normal[0, y, x] + ny * normal[1, y, x] + nz * normal[2, y, x]
-                    wt = normal_power(d, sigma_n, sigma_n_int)
-                    if wt <= 0.0:
+                    if d <= 0.0:
                         continue
-                    wt *= expneg(-depth_distance(zp, depth[y, x], gx, gy, dx, dy, sigma_z, depth_eps))
+                    dist = min(depth_distance(zp, depth[y, x], gx, gy, dx, dy, sigma_z, depth_eps), 1024.0)
+                    wt = expneg(-(dist + sigma_n * neg_log_series(d)))
                 wsum += wt
                 s1 += wt * mom[s, 0, y, x]
                 s2 += wt * mom[s, 1, y, x]
@@ -96,7 +97,8 @@ def prefiltered_variance(var, valid, s, i, j):
     Returns
     -------
     float
-        The blurred variance (the weights of the valid neighbours renormalised).
+        The blurred variance (each at most ``VAR_MAX``; the weights of the valid neighbours
+        renormalised).
     """
     h = valid.shape[0]
     w = valid.shape[1]
@@ -112,5 +114,5 @@ def prefiltered_variance(var, valid, s, i, j):
                 continue
             wt = gauss3_tap(dy) * gauss3_tap(dx)
             wsum += wt
-            acc += wt * var[s, y, x]
+            acc += wt * min(var[s, y, x], VAR_MAX)
     return acc / wsum if wsum > 0.0 else 0.0

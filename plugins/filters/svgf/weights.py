@@ -6,13 +6,18 @@ device code.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 #: smallest denominator used anywhere a depth or luminance difference is divided
 TINY = 1e-30
+#: bounds of the à-trous weights' inputs, the same in both backends (the CPU's float32 pool
+#: needs them to keep every exponent and sum finite): variances at most VAR_MAX (25 x VAR_MAX
+#: stays finite), luminances within +-LUM_MAX and the luminance weight's ``1 / (sigma_l
+#: sqrt(Var) + eps)`` at most INV_MAX (their product stays finite; such a tap weighs 0 anyway)
+VAR_MAX = 1.0e36
+LUM_MAX = 1.0e18
+INV_MAX = 1.0e18
 #: expneg evaluates (1 + x / 2^EXP_SQUARINGS)^(2^EXP_SQUARINGS)
 EXP_SQUARINGS = 10
 _EXP_SCALE = np.float32(1.0 / (1 << EXP_SQUARINGS))
@@ -47,36 +52,6 @@ def b3_tap(k):
 def gauss3_tap(k):
     """Weight of tap ``k`` in {-1, 0, 1} of the 1-D 3-tap Gaussian (1/4, 1/2, 1/4)."""
     return 0.5 if k == 0 else 0.25
-
-
-@njit(cache=True, inline="always")
-def normal_power(d, exponent, exponent_int):
-    """``max(0, d) ** exponent``; repeated squaring when ``exponent_int >= 0``.
-
-    Parameters
-    ----------
-    d : float
-        Dot product of two unit normals.
-    exponent : float
-        sigma_n of the paper.
-    exponent_int : int
-        ``exponent`` as an integer, or -1 if it is not integral.
-    """
-    if d <= 0.0:
-        return 0.0
-    if d >= 1.0:
-        return 1.0
-    if exponent_int < 0:
-        return math.pow(d, exponent)
-    r = 1.0
-    x = d
-    n = exponent_int
-    while n > 0:
-        if n & 1:
-            r *= x
-        x *= x
-        n >>= 1
-    return r
 
 
 @njit(cache=True, inline="always")
@@ -125,6 +100,7 @@ def neg_log_series(d):
     the one vectorizable exponential of a tap. The exponent is short by less than
     ``sigma_n x^5 / 5``: with sigma_n = 128 a relative error of 8e-6 in the weight at
     ``d = 0.95`` (weight 1.4e-3) and 2.8e-4 at ``d = 0.9`` (weight 1.4e-6). ``d >= 1`` gives 0.
+    Used by the à-trous weights and the 7x7 spatial variance.
     """
     x = max(_ONE - np.float32(d), _ZERO)
     x2 = x * x

@@ -5,12 +5,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .integrator import albedo_at, surface
+from .integrator import surface
+from .shading import albedo_at
 from .vecmath import dot
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def gbuffer(origins, dirs, tri, bary, forward, geom, mats, tri_obj, base):
+def gbuffer(origins, dirs, tri, bary, forward, geom, mats, tri_obj, base, base_tex):
     """Position, shading normal, albedo, depth and object id per pixel.
 
     The normal is the interpolated shading normal, negated where the back face (by winding) is
@@ -28,6 +29,8 @@ def gbuffer(origins, dirs, tri, bary, forward, geom, mats, tri_obj, base):
     base : ndarray (M, 3) float32
         Per-material colour of the albedo channel before texturing (as the raster renderer:
         diffuse albedo; F0 for conductors and mirrors; white for dielectrics).
+    base_tex : ndarray (M,) int32
+        The texture of each material's albedo (``harness.Material.texture``), -1 for none.
 
     Returns
     -------
@@ -35,8 +38,8 @@ def gbuffer(origins, dirs, tri, bary, forward, geom, mats, tri_obj, base):
     depth : ndarray (N,) float32 (inf for background)
     object_id : ndarray (N,) int32 (-1 for background)
     """
-    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i = geom
-    mat_kind, mat_albedo, mat_emit, mat_rough, mat_spec, mat_ior, mat_tex, tex_data, tex_off, tex_w, tex_h = mats
+    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
+    mat_root, mat_flags, mat_emit, node_kind, nf, ni, tables, tex_data, tex_off, tex_w, tex_h, tex_uv = mats
     n = origins.shape[0]
     position = np.zeros((n, 3), np.float32)
     normal = np.zeros((n, 3), np.float32)
@@ -51,7 +54,7 @@ def gbuffer(origins, dirs, tri, bary, forward, geom, mats, tri_obj, base):
         d = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
         if dot(ng, d) > 0.0:  # back face seen: turn the normal to the viewer
             ns = (-ns[0], -ns[1], -ns[2])
-        a = albedo_at(tri_mat[t], u, v, base, mat_tex, tex_data, tex_off, tex_w, tex_h)
+        a = albedo_at(tri_mat[t], u, v, base, base_tex, tex_data, tex_off, tex_w, tex_h, tex_uv)
         for c in range(3):
             position[i, c] = p[c]
             normal[i, c] = ns[c]

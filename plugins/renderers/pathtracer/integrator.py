@@ -25,10 +25,24 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .bsdf import DIELECTRIC, bsdf_eval, bsdf_sample, is_delta
+from .bsdf import (
+    F_A,
+    F_B,
+    I_CHILD0,
+    I_CHILD1,
+    I_TEX_A,
+    I_TEX_B,
+    TWOSIDED,
+    bsdf_eval,
+    bsdf_sample,
+    is_delta,
+    is_transmissive,
+)
 from .lights import infinite_pdf, infinite_radiance, sample_light
+from .materials import HAS_MASK, ONE_SIDED_EMISSION
 from .rng import stream_key, uniform
 from .schedule import take
+from .shading import node_colour, resolve, transparent
 from .traverse import closest_hit, occluded, stack_size
 from .vecmath import cross, dot, normalize, onb, to_local, to_world
 
@@ -59,47 +73,6 @@ def surface(tri, b1, b2, tri_v, tri_n, tri_uv):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def albedo_at(m, u, v, base, mat_tex, tex_data, tex_off, tex_w, tex_h):
-    """``base[m]`` times material ``m``'s texture (bilinear, wrapping; texel (r, c) is centred on
-    ``u = (c + 0.5) / w``, ``v = 1 - (r + 0.5) / h``)."""
-    r, g, b = np.float64(base[m, 0]), np.float64(base[m, 1]), np.float64(base[m, 2])
-    k = mat_tex[m]
-    if k < 0:
-        return r, g, b
-    w = tex_w[k]
-    h = tex_h[k]
-    off = tex_off[k]
-    x = (u - math.floor(u)) * w - 0.5
-    y = (1.0 - (v - math.floor(v))) * h - 0.5
-    if not (math.isfinite(x) and math.isfinite(y)):
-        return r, g, b
-    x0 = math.floor(x)
-    y0 = math.floor(y)
-    fx = x - x0
-    fy = y - y0
-    i0 = int(x0) % w
-    j0 = int(y0) % h
-    i1 = (i0 + 1) % w
-    j1 = (j0 + 1) % h
-    return (r * _bilinear(tex_data, off + (j0 * w + i0) * 3, off + (j0 * w + i1) * 3, off + (j1 * w + i0) * 3,
-                          off + (j1 * w + i1) * 3, fx, fy),
-            g * _bilinear(tex_data, off + (j0 * w + i0) * 3 + 1, off + (j0 * w + i1) * 3 + 1,
-                          off + (j1 * w + i0) * 3 + 1, off + (j1 * w + i1) * 3 + 1, fx, fy),
-            b * _bilinear(tex_data, off + (j0 * w + i0) * 3 + 2, off + (j0 * w + i1) * 3 + 2,
-                          off + (j1 * w + i0) * 3 + 2, off + (j1 * w + i1) * 3 + 2, fx, fy))
-
-
-@njit(cache=True, error_model="numpy")
-def _bilinear(tex_data, k00, k01, k10, k11, fx, fy):
-    """Bilinear blend of the texels at flat indices k00 (top left), k01, k10, k11."""
-    a00 = tex_data[k00]
-    a01 = tex_data[k01]
-    a10 = tex_data[k10]
-    a11 = tex_data[k11]
-    return (1 - fy) * ((1 - fx) * a00 + fx * a01) + fy * ((1 - fx) * a10 + fx * a11)
-
-
-@njit(cache=True, error_model="numpy", inline="always")
 def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, max_depth, rr_depth,
                  strategy, stack_n, stack_t):
     """Radiance of one path starting at a known first hit.
@@ -110,8 +83,8 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
         ``(r, g, b, dr, dg, db, shadow_rays, shadow_hits)``: radiance, its direct part, and the
         first hit's light samples and how many of them reached their light.
     """
-    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i = geom
-    mat_kind, mat_albedo, mat_emit, mat_rough, mat_spec, mat_ior, mat_tex, tex_data, tex_off, tex_w, tex_h = mats
+    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
+    mat_root, mat_flags, mat_emit, node_kind, nf, ni, tables, tex_data, tex_off, tex_w, tex_h, tex_uv = mats
     emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols = lights
     lr = lg = lb = 0.0
     dr = dg = db = 0.0
@@ -130,14 +103,17 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
     while True:
         p, ng, ns, tu, tv = surface(tri, b1, b2, tri_v, tri_n, tri_uv)
         m = tri_mat[tri]
+        wo = (-d[0], -d[1], -d[2])
+        cos_go = dot(ng, wo)
         er, eg, eb = np.float64(mat_emit[m, 0]), np.float64(mat_emit[m, 1]), np.float64(mat_emit[m, 2])
-        if er > 0.0 or eg > 0.0 or eb > 0.0:
+        if (er > 0.0 or eg > 0.0 or eb > 0.0) and (
+                (mat_flags[m] & ONE_SIDED_EMISSION) == 0 or tri_front[tri] * cos_go > 0.0):
             w = 1.0
             if not prev_delta:
                 if strategy == LIGHT_ONLY:
                     w = 0.0
                 elif strategy == MIS:
-                    cos_l = abs(dot(ng, d))
+                    cos_l = abs(cos_go)
                     pl = tri_light_pdf[tri] * seg_len * seg_len / cos_l if cos_l > 0.0 else 0.0
                     w = prev_pdf * prev_pdf / (prev_pdf * prev_pdf + pl * pl)
             lr += tr * er * w
@@ -149,66 +125,85 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                 db += tb * eb * w
         if bounce + 2 > max_depth:
             break
-        kind = mat_kind[m]
-        wo = (-d[0], -d[1], -d[2])
-        cos_go = dot(ng, wo)
-        if kind == DIELECTRIC:
-            n = ns
-        else:
-            if cos_go < 0.0:
-                ng = (-ng[0], -ng[1], -ng[2])
-                cos_go = -cos_go
-            n = ns if dot(ns, ng) >= 0.0 else (-ns[0], -ns[1], -ns[2])
-            if dot(n, wo) <= 1e-9:
-                n = ng
-        alb = albedo_at(m, tu, tv, mat_albedo, mat_tex, tex_data, tex_off, tex_w, tex_h)
-        alpha = np.float64(mat_rough[m])
-        spec = (np.float64(mat_spec[m, 0]), np.float64(mat_spec[m, 1]), np.float64(mat_spec[m, 2]))
-        t_ax, s_ax = onb(n)
-        wo_l = to_local(wo, t_ax, s_ax, n)
         base = 8 * bounce
-        delta = is_delta(kind)
-        if strategy != BSDF_ONLY and not delta:
-            ld, ldist, le, lpdf, ltri = sample_light(
-                uniform(key, base), uniform(key, base + 1), uniform(key, base + 2), p, lp, tri_v, tri_mat,
-                mat_emit, emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols)
-            if lpdf > 0.0:
-                if bounce == 0:
-                    vrays += 1
-                if dot(ld, ng) > 0.0:
-                    wi_l = to_local(ld, t_ax, s_ax, n)
-                    fr, fg, fb, fpdf = bsdf_eval(kind, alb, alpha, spec, wo_l, wi_l)
-                    visible = False
-                    if (fr > 0.0 or fg > 0.0 or fb > 0.0) or bounce == 0:
-                        so = (p[0] + ng[0] * eps, p[1] + ng[1] * eps, p[2] + ng[2] * eps)
-                        tmax = ldist * (1.0 - 1e-4) if ldist < np.inf else np.inf
-                        visible = not occluded(so[0], so[1], so[2], ld[0], ld[1], ld[2], tmax, ltri,
-                                               tri_v, nodes_f, nodes_i, stack_n, stack_t)
-                    if visible:
-                        if bounce == 0:
-                            vhits += 1
-                        if fr > 0.0 or fg > 0.0 or fb > 0.0:
-                            w = 1.0
-                            if strategy == MIS:
-                                w = lpdf * lpdf / (lpdf * lpdf + fpdf * fpdf)
-                            k = w / lpdf
-                            cr, cg, cb = tr * fr * le[0] * k, tg * fg * le[1] * k, tb * fb * le[2] * k
-                            lr += cr
-                            lg += cg
-                            lb += cb
+        front = dot(ns, wo) > 0.0
+        root = mat_root[m]
+        if node_kind[root] < TWOSIDED:  # a bare BSDF, or twosided around one: no walk, no random number
+            leaf, two_sided = root, False
+        elif node_kind[root] == TWOSIDED and node_kind[ni[root, I_CHILD0]] < TWOSIDED and (
+                front or ni[root, I_CHILD1] == ni[root, I_CHILD0]):
+            leaf, two_sided = ni[root, I_CHILD0], True
+        else:
+            leaf, two_sided = resolve(root, front, uniform(key, base + 7), tu, tv, node_kind, nf, ni,
+                                      tex_data, tex_off, tex_w, tex_h, tex_uv)
+        if leaf < 0:  # through a mask: a null interaction, as a delta lobe of weight 1
+            wi = d
+            wr = wg = wb = 1.0
+            pdf = 1.0
+            dlt = True
+            side = -eps if cos_go > 0.0 else eps
+        else:
+            kind = node_kind[leaf]
+            transmissive = is_transmissive(kind)
+            if transmissive:
+                n = ns
+            else:
+                if not (two_sided or front):
+                    break  # a one-sided BSDF seen from behind is black
+                if cos_go < 0.0:
+                    ng = (-ng[0], -ng[1], -ng[2])
+                    cos_go = -cos_go
+                n = ns if dot(ns, ng) >= 0.0 else (-ns[0], -ns[1], -ns[2])
+                if dot(n, wo) <= 1e-9:
+                    n = ng
+            ca = node_colour(leaf, I_TEX_A, F_A, tu, tv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
+            cb = node_colour(leaf, I_TEX_B, F_B, tu, tv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
+            t_ax, s_ax = onb(n)
+            wo_l = to_local(wo, t_ax, s_ax, n)
+            if strategy != BSDF_ONLY and not is_delta(kind):
+                ld, ldist, le, lpdf, ltri = sample_light(
+                    uniform(key, base), uniform(key, base + 1), uniform(key, base + 2), p, lp, tri_v, tri_mat,
+                    mat_emit, mat_flags, tri_front, emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols)
+                if lpdf > 0.0:
+                    if bounce == 0:
+                        vrays += 1
+                    side_l = dot(ld, ng)
+                    if side_l > 0.0 or (transmissive and side_l < 0.0):
+                        wi_l = to_local(ld, t_ax, s_ax, n)
+                        fr, fg, fb, fpdf = bsdf_eval(kind, leaf, nf, ni, tables, ca, cb, wo_l, wi_l)
+                        visible = False
+                        if (fr > 0.0 or fg > 0.0 or fb > 0.0) or bounce == 0:
+                            off = eps if side_l > 0.0 else -eps
+                            so = (p[0] + ng[0] * off, p[1] + ng[1] * off, p[2] + ng[2] * off)
+                            tmax = ldist * (1.0 - 1e-4) if ldist < np.inf else np.inf
+                            visible = not occluded(so[0], so[1], so[2], ld[0], ld[1], ld[2], tmax, ltri,
+                                                   tri_v, nodes_f, nodes_i, stack_n, stack_t)
+                        if visible:
                             if bounce == 0:
-                                dr += cr
-                                dg += cg
-                                db += cb
-        wi_l, wr, wg, wb, pdf, dlt = bsdf_sample(kind, alb, alpha, spec, np.float64(mat_ior[m]), wo_l,
-                                                 uniform(key, base + 3), uniform(key, base + 4),
-                                                 uniform(key, base + 5))
-        if not (wr > 0.0 or wg > 0.0 or wb > 0.0):
-            break
-        wi = to_world(wi_l, t_ax, s_ax, n)
-        cos_gi = dot(wi, ng)
-        if (wi_l[2] * wo_l[2] > 0.0) != (cos_gi * cos_go > 0.0) or cos_gi == 0.0:
-            break
+                                vhits += 1
+                            if fr > 0.0 or fg > 0.0 or fb > 0.0:
+                                w = 1.0
+                                if strategy == MIS:
+                                    w = lpdf * lpdf / (lpdf * lpdf + fpdf * fpdf)
+                                k = w / lpdf
+                                cr, cg, cb_ = tr * fr * le[0] * k, tg * fg * le[1] * k, tb * fb * le[2] * k
+                                lr += cr
+                                lg += cg
+                                lb += cb_
+                                if bounce == 0:
+                                    dr += cr
+                                    dg += cg
+                                    db += cb_
+            wi_l, wr, wg, wb, pdf, dlt = bsdf_sample(kind, leaf, nf, ni, tables, ca, cb, wo_l,
+                                                     uniform(key, base + 3), uniform(key, base + 4),
+                                                     uniform(key, base + 5))
+            if not (wr > 0.0 or wg > 0.0 or wb > 0.0):
+                break
+            wi = to_world(wi_l, t_ax, s_ax, n)
+            cos_gi = dot(wi, ng)
+            if (wi_l[2] * wo_l[2] > 0.0) != (cos_gi * cos_go > 0.0) or cos_gi == 0.0:
+                break
+            side = eps if cos_gi > 0.0 else -eps
         tr *= wr
         tg *= wg
         tb *= wb
@@ -219,7 +214,6 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
             tr /= q
             tg /= q
             tb /= q
-        side = eps if cos_gi > 0.0 else -eps
         o = (p[0] + ng[0] * side, p[1] + ng[1] * side, p[2] + ng[2] * side)
         hit, t, hb1, hb2 = closest_hit(o[0], o[1], o[2], wi[0], wi[1], wi[2], np.inf, tri,
                                        tri_v, nodes_f, nodes_i, stack_n, stack_t)
@@ -265,8 +259,12 @@ def pixel_ray(i, width, height, eye, right, up, forward, tan_half):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def first_hits(eye, right, up, forward, tan_half, width, height, geom, depth, threads):
-    """Primary rays through the pixel centres of a pinhole camera and their closest hits.
+def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, depth, threads):
+    """Primary rays through the pixel centres of a pinhole camera and their first hits.
+
+    The first hit is the closest surface that a sample can stop at: surfaces where a ``mask``'s
+    opacity is 0 are passed (every path would pass them), partly opaque ones are kept (the
+    path's first step passes them with probability ``1 - opacity``).
 
     Parameters
     ----------
@@ -275,7 +273,7 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, depth, th
     tan_half : float
         Tangent of half the vertical field of view.
     width, height : int
-    geom, depth : scene arrays (see :class:`.scenedata.SceneData`).
+    geom, mats, depth : scene arrays (see :class:`.scenedata.SceneData`).
     threads : int
         Workers taking tasks in turn (``numba.get_num_threads()``; see :mod:`.schedule`).
 
@@ -288,7 +286,8 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, depth, th
     bary : ndarray (N, 3) float64
         Barycentric weights of corners 1 and 2, and the distance.
     """
-    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i = geom
+    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
+    mat_root, mat_flags, mat_emit, node_kind, nf, ni, tables, tex_data, tex_off, tex_w, tex_h, tex_uv = mats
     n = width * height
     origins = np.empty((n, 3))
     dirs = np.empty((n, 3))
@@ -309,6 +308,19 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, depth, th
                 dirs[i, 0], dirs[i, 1], dirs[i, 2] = d
                 h, t, b1, b2 = closest_hit(o[0], o[1], o[2], d[0], d[1], d[2], np.inf, -1, tri_v, nodes_f, nodes_i,
                                            stack_n, stack_t)
+                travelled = 0.0
+                for _layer in range(64):
+                    if h < 0 or (mat_flags[tri_mat[h]] & HAS_MASK) == 0:
+                        break
+                    p, ng, ns, tu, tv = surface(h, b1, b2, tri_v, tri_n, tri_uv)
+                    front = ns[0] * d[0] + ns[1] * d[1] + ns[2] * d[2] < 0.0
+                    if not transparent(mat_root[tri_mat[h]], front, tu, tv, node_kind, nf, ni, tex_data, tex_off,
+                                       tex_w, tex_h, tex_uv):
+                        break
+                    travelled += t
+                    h, t, b1, b2 = closest_hit(p[0], p[1], p[2], d[0], d[1], d[2], np.inf, h, tri_v, nodes_f,
+                                               nodes_i, stack_n, stack_t)
+                t += travelled
                 tri[i] = h
                 bary[i, 0] = b1
                 bary[i, 1] = b2

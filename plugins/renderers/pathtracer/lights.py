@@ -1,12 +1,12 @@
 """Light sources: emissive triangles, the sun (a cone of directions) and the environment.
 
 Next-event estimation first picks a light group with probabilities proportional to estimated
-power (emissive triangles: ``2 pi A L``, both faces emit; sun and environment: ``pi r^2`` times
-the integral of their radiance over directions, with ``r`` the radius of the scene's bounding
-sphere), then a triangle in proportion to its power (area x luminance of emission) and a uniform
-point on it, a uniform direction in the sun's cone, or a direction from the environment
-(piecewise-constant importance sampling of luminance x sin(theta) for maps, uniform on the sphere
-for the constant and sky kinds).
+power (emissive triangles: ``2 pi A L`` where both faces emit, ``pi A L`` for one-sided emitters;
+sun and environment: ``pi r^2`` times the integral of their radiance over directions, with ``r``
+the radius of the scene's bounding sphere), then a triangle in proportion to its power (area x
+luminance of emission) and a uniform point on it, a uniform direction in the sun's cone, or a
+direction from the environment (piecewise-constant importance sampling of luminance x
+sin(theta) for maps, uniform on the sphere for the constant and sky kinds).
 
 Sun and environment are treated as one infinite light: a direction that leaves the scene gets
 the sum of their radiances, and its light pdf is the mixture ``p_sun pdf_sun + p_env pdf_env``.
@@ -113,9 +113,13 @@ def infinite_pdf(d, lp, env_img, cdf_rows, cdf_cols):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, emit_tri, emit_cdf, tri_light_pdf,
-                 env_img, cdf_rows, cdf_cols):
+def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_front, emit_tri, emit_cdf,
+                 tri_light_pdf, env_img, cdf_rows, cdf_cols):
     """Sample a light as seen from point ``p``.
+
+    A triangle of a one-sided emitter (``mat_flags & 1``, Mitsuba's ``area``) emits only on the
+    side of its normal oriented by ``tri_front`` (the winding normal's sign against the shading
+    normals); both sides otherwise.
 
     Returns
     -------
@@ -156,10 +160,13 @@ def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, emit_tri, emit_cdf
         nl = math.sqrt(nx * nx + ny * ny + nz * nz)
         if nl <= 0.0:
             return zero, 0.0, zero, 0.0, -1
-        cos_l = abs(nx * d[0] + ny * d[1] + nz * d[2]) / nl
+        cos_signed = -(nx * d[0] + ny * d[1] + nz * d[2]) / nl
+        cos_l = abs(cos_signed)
         if cos_l <= 1e-8:
             return zero, 0.0, zero, 0.0, -1
         m = tri_mat[t]
+        if (mat_flags[m] & 1) != 0 and tri_front[t] * cos_signed <= 0.0:
+            return zero, 0.0, zero, 0.0, -1
         le = (np.float64(mat_emit[m, 0]), np.float64(mat_emit[m, 1]), np.float64(mat_emit[m, 2]))
         return d, dist, le, tri_light_pdf[t] * d2 / cos_l, t
     if u0 < lp[P_TRI] + lp[P_SUN]:

@@ -11,31 +11,13 @@ from harness import Frame, FrameMeta, Scene
 
 from .gbuffer import gbuffer
 from .integrator import STRATEGIES, accumulate_samples, first_hits
+from .materials import ONE_SIDED_EMISSION
+from .pixels import PixelState
+from .sampler import PathSampler
 from .scenedata import SceneData, build_scene_data
 
 OWNER = "renderer 'pathtracer'"
 GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "emission", "visibility")
-
-
-class PixelState:
-    """Running per-pixel sums of one frame: what a :class:`Frame` is computed from.
-
-    Attributes
-    ----------
-    acc, acc_sq, acc_direct : ndarray (N, 3) float64
-        Sums of radiance, squared radiance and direct radiance over the samples taken.
-    shadow : ndarray (N, 2) float64
-        First-hit light samples and those that reached their light.
-    spp : ndarray (N,) int64
-        Samples taken per pixel.
-    """
-
-    def __init__(self, n: int):
-        self.acc = np.zeros((n, 3))
-        self.acc_sq = np.zeros((n, 3))
-        self.acc_direct = np.zeros((n, 3))
-        self.shadow = np.zeros((n, 2))
-        self.spp = np.zeros(n, np.int64)
 
 
 class FrameSetup:
@@ -50,8 +32,8 @@ class FrameSetup:
         eye = tuple(float(x) for x in cam.eye(frame_index))
         tan_half = float(np.tan(np.radians(cam.fov) / 2.0))
         self.origins, self.dirs, self.tri, self.bary = first_hits(eye, right, up, forward, tan_half, width,
-                                                                  height, data.geometry(), data.depth,
-                                                                  numba.get_num_threads())
+                                                                  height, data.geometry(), data.materials(),
+                                                                  data.depth, numba.get_num_threads())
         self._gbuffer = None
 
     def gbuffer(self) -> dict:
@@ -61,7 +43,7 @@ class FrameSetup:
             forward = np.asarray(self.scene.camera.basis(self.index)[2], np.float64)
             pos, nrm, alb, depth, oid = gbuffer(self.origins, self.dirs, self.tri, self.bary, forward,
                                                 self.data.geometry(), self.data.materials(), self.data.tri_obj,
-                                                self.data.gbuffer_albedo)
+                                                self.data.mats.gbuffer_albedo, self.data.mats.gbuffer_tex)
             self._gbuffer = {
                 "position": pos.reshape(h, w, 3),
                 "normal": nrm.reshape(h, w, 3),
@@ -75,14 +57,21 @@ class FrameSetup:
     def emission(self) -> np.ndarray:
         """Emitted radiance of each pixel's first hit (N, 3) float32; zero for background.
 
-        Both faces of an emitter emit, as in the integrator, so this is exactly the part of
-        ``color`` that reaches the camera without a bounce.
+        As in the integrator, both faces of an emitter emit, but one-sided emitters (Mitsuba's
+        ``area``) only on their front, so this is exactly the part of ``color`` that reaches the
+        camera without a bounce.
         """
-        mat_emit = np.asarray(self.data.mat_emit, np.float32)
-        tri_mat = np.asarray(self.data.tri_mat)
-        hit = self.tri >= 0
+        data = self.data
+        mat_emit = np.asarray(data.mat_emit, np.float32)
+        tri_mat = np.asarray(data.tri_mat)
+        hit = np.flatnonzero(self.tri >= 0)
+        t = self.tri[hit]
         out = np.zeros((self.tri.shape[0], 3), np.float32)
-        out[hit] = mat_emit[tri_mat[self.tri[hit]]]
+        v = data.tri_v[t].astype(np.float64).reshape(-1, 3, 3)
+        facing = np.einsum("ij,ij->i", np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), -self.dirs[hit])
+        one_sided = (data.mats.mat_flags[tri_mat[t]] & ONE_SIDED_EMISSION) != 0
+        lit = ~one_sided | (data.tri_front[t] * facing > 0.0)
+        out[hit[lit]] = mat_emit[tri_mat[t[lit]]]
         return out
 
 
@@ -253,7 +242,5 @@ class PathTracer:
     def sampler(self, scene: Scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(),
                 resolution=None):
         """An adaptive-sampling service starting with ``spp`` samples in every pixel."""
-        from .sampler import PathSampler
-
         return PathSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels,
                            resolution=resolution)

@@ -6,6 +6,8 @@ import numpy as np
 
 from harness import Frame, Sampler
 
+from .pixels import PixelState
+
 
 class PathSampler(Sampler):
     """Continues each pixel's sample stream on request.
@@ -25,8 +27,6 @@ class PathSampler(Sampler):
     """
 
     def __init__(self, renderer, scene, frame_index: int, *, spp: int, seed: int, channels, resolution):
-        from .renderer import PixelState
-
         if int(spp) < 1:
             raise ValueError(f"renderer 'pathtracer': sampler needs spp >= 1, got {spp}")
         self._renderer = renderer

@@ -11,8 +11,8 @@ from harness import Material, Scene, read_texture
 
 from . import lights as L
 from .bvh import build_bvh, pack_wide
+from .materials import ONE_SIDED_EMISSION, MaterialTables, compile_materials
 
-_KIND_CODES = {"diffuse": 0, "conductor": 1, "plastic": 2, "dielectric": 3, "mirror": 4}
 _ENV_CODES = {"constant": L.ENV_CONSTANT, "sky": L.ENV_SKY, "map": L.ENV_MAP}
 
 
@@ -31,14 +31,15 @@ class SceneData:
         Corner positions and shading normals ``(v0, v1, v2)``.
     tri_uv : ndarray (T, 6) float32
     tri_mat, tri_obj : ndarray (T,) int32
+    tri_front : ndarray (T,) float64
+        +1 where the winding normal agrees with the triangle's shading normals, else -1 (the
+        emitting side of one-sided emitters).
     nodes_f, nodes_i : the BVH (see :func:`.bvh.pack_wide`); ``depth`` its number of levels.
-    mat_* : per-material arrays; ``tex_*`` all textures in one flat float32 array.
+    mats : MaterialTables
+        Materials and textures (see :mod:`.materials`).
     emit_tri, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols : lights (see :mod:`.lights`).
     eps : float
         Ray-origin offset along the geometric normal, relative to the scene's extent.
-    gbuffer_albedo : ndarray (M, 3) float32
-        Untextured colour of the albedo channel per material (F0 for conductors and mirrors,
-        white for dielectrics, the diffuse albedo otherwise).
     """
 
     tri_v: np.ndarray
@@ -46,20 +47,11 @@ class SceneData:
     tri_uv: np.ndarray
     tri_mat: np.ndarray
     tri_obj: np.ndarray
+    tri_front: np.ndarray
     nodes_f: np.ndarray
     nodes_i: np.ndarray
     depth: int
-    mat_kind: np.ndarray
-    mat_albedo: np.ndarray
-    mat_emit: np.ndarray
-    mat_rough: np.ndarray
-    mat_spec: np.ndarray
-    mat_ior: np.ndarray
-    mat_tex: np.ndarray
-    tex_data: np.ndarray
-    tex_off: np.ndarray
-    tex_w: np.ndarray
-    tex_h: np.ndarray
+    mats: MaterialTables
     emit_tri: np.ndarray
     emit_cdf: np.ndarray
     tri_light_pdf: np.ndarray
@@ -68,53 +60,22 @@ class SceneData:
     cdf_rows: np.ndarray
     cdf_cols: np.ndarray
     eps: float
-    gbuffer_albedo: np.ndarray
+
+    @property
+    def mat_emit(self) -> np.ndarray:
+        return self.mats.mat_emit
 
     def geometry(self) -> tuple:
         """Arrays the traversal and surface lookups need."""
-        return (self.tri_v, self.tri_n, self.tri_uv, self.tri_mat, self.nodes_f, self.nodes_i)
+        return (self.tri_v, self.tri_n, self.tri_uv, self.tri_mat, self.nodes_f, self.nodes_i, self.tri_front)
 
     def materials(self) -> tuple:
         """Material and texture arrays."""
-        return (self.mat_kind, self.mat_albedo, self.mat_emit, self.mat_rough, self.mat_spec,
-                self.mat_ior, self.mat_tex, self.tex_data, self.tex_off, self.tex_w, self.tex_h)
+        return self.mats.arrays()
 
     def lights(self) -> tuple:
         """Light-sampling arrays (``lp`` is passed separately)."""
         return (self.emit_tri, self.emit_cdf, self.tri_light_pdf, self.env_img, self.cdf_rows, self.cdf_cols)
-
-
-def _materials(scene: Scene):
-    mats = list(scene.materials)
-    if not mats:
-        mats = [Material("default")]
-    m = len(mats)
-    kind = np.array([_KIND_CODES[x.kind] for x in mats], np.int32)
-    gbuf = np.array([x.specular if x.kind in ("conductor", "mirror") else (1.0, 1.0, 1.0)
-                     if x.kind == "dielectric" else x.albedo for x in mats], np.float32).reshape(m, 3)
-    albedo = np.array([x.albedo for x in mats], np.float32).reshape(m, 3)
-    emit = np.array([x.emission for x in mats], np.float32).reshape(m, 3)
-    rough = np.array([x.roughness for x in mats], np.float32)
-    spec = np.array([x.specular for x in mats], np.float32).reshape(m, 3)
-    ior = np.array([x.ior for x in mats], np.float32)
-    tex_id = np.full(m, -1, np.int32)
-    chunks, off, tw, th = [], [], [], []
-    total = 0
-    for i, mat in enumerate(mats):
-        img = mat.texture_array()
-        if img is None:
-            continue
-        img = np.ascontiguousarray(np.clip(np.nan_to_num(img, nan=0.0), 0.0, None), np.float32)
-        tex_id[i] = len(off)
-        off.append(total)
-        th.append(img.shape[0])
-        tw.append(img.shape[1])
-        chunks.append(img.ravel())
-        total += img.size
-    tex_data = np.concatenate(chunks) if chunks else np.zeros(3, np.float32)
-    arrays = (kind, albedo, emit, rough, spec, ior, tex_id, tex_data, np.array(off or [0], np.int64),
-              np.array(tw or [1], np.int32), np.array(th or [1], np.int32))
-    return arrays, gbuf
 
 
 def _environment(scene: Scene):
@@ -163,8 +124,8 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
     uvs = np.asarray(soup.uvs, np.float32)
     tmat = np.asarray(soup.material, np.int32)
     tobj = np.asarray(soup.object_id, np.int32)
-    mats, gbuf_albedo = _materials(scene)
-    n_mat = len(mats[0])
+    mats = compile_materials(list(scene.materials) or [Material("default")], scene.params.get("bsdfs"))
+    n_mat = len(mats.mat_root)
     if len(verts) == 0:
         verts = np.zeros((1, 3, 3), np.float32)
         norms = np.zeros((1, 3, 3), np.float32)
@@ -181,6 +142,9 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
     tri_v = np.ascontiguousarray(verts.reshape(-1, 9))
     tri_n = np.ascontiguousarray(norms.reshape(-1, 9))
     tri_uv = np.ascontiguousarray(uvs.reshape(-1, 6))
+    e32 = verts.astype(np.float64)
+    winding = np.cross(e32[:, 1] - e32[:, 0], e32[:, 2] - e32[:, 0])
+    tri_front = np.where(np.einsum("ij,ij->i", winding, norms.astype(np.float64).sum(axis=1)) < 0.0, -1.0, 1.0)
 
     lo = verts.reshape(-1, 3).min(axis=0).astype(np.float64)
     hi = verts.reshape(-1, 3).max(axis=0).astype(np.float64)
@@ -188,11 +152,11 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
     extent = float(np.abs(np.concatenate([lo, hi])).max())
     eps = 1e-6 * (1.0 + extent)
 
-    # emissive triangles, in proportion to power (both faces emit)
-    e64 = verts.astype(np.float64)
-    area = 0.5 * np.linalg.norm(np.cross(e64[:, 1] - e64[:, 0], e64[:, 2] - e64[:, 0]), axis=1)
-    emit = mats[2][tmat].astype(np.float64)
-    power = 2.0 * math.pi * area * np.maximum(emit @ np.array([0.2126, 0.7152, 0.0722]), 0.0)
+    # emissive triangles, in proportion to power (one face or both)
+    area = 0.5 * np.linalg.norm(winding, axis=1)
+    emit = mats.mat_emit[tmat].astype(np.float64)
+    sides = np.where(mats.mat_flags[tmat] & ONE_SIDED_EMISSION, 1.0, 2.0)
+    power = sides * math.pi * area * np.maximum(emit @ np.array([0.2126, 0.7152, 0.0722]), 0.0)
     emitters = np.flatnonzero((power > 0) & (area > 0)).astype(np.int32)
     tri_power = float(power[emitters].sum())
 
@@ -230,5 +194,5 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
     else:
         emit_cdf = np.array([0.0, 1.0])
         emitters = np.zeros(1, np.int32)
-    return SceneData(tri_v, tri_n, tri_uv, tmat, tobj, nodes_f, nodes_i, int(depth), *mats,
-                     emitters, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols, eps, gbuf_albedo)
+    return SceneData(tri_v, tri_n, tri_uv, tmat, tobj, tri_front, nodes_f, nodes_i, int(depth), mats,
+                     emitters, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols, eps)

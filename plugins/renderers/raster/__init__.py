@@ -12,7 +12,7 @@ from harness import RendererSpec, hookimpl
 
 from .renderer import PROVIDES, RasterRenderer
 
-VERSION = "1.0"
+VERSION = "1.1"
 
 
 @hookimpl
@@ -26,7 +26,7 @@ def register_renderers():
             references=True,
             adaptive=False,
             scene_kinds={"mesh"},
-            reference_spp=16,
+            reference_spp=64,
             tasks={"antialias"},
             description="PyVista/VTK rasterized float G-buffer, local shading; SSAA references",
         )

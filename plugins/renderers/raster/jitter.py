@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+#: length of the jitter cycle: frame t uses the Halton point of index (t mod 16) + 1, as engines
+#: do (UE4 and most TAA implementations cycle 8 or 16 points of the (2, 3) sequence)
+JITTER_CYCLE = 16
+
 
 def radical_inverse(index: int, base: int) -> float:
     """The van der Corput radical inverse of ``index`` in ``base`` (in [0, 1))."""
@@ -13,9 +17,11 @@ def radical_inverse(index: int, base: int) -> float:
     return result
 
 
-def halton_jitter(frame: int) -> tuple[float, float]:
+def halton_jitter(frame: int, cycle: int = JITTER_CYCLE) -> tuple[float, float]:
     """Halton (2, 3) offset of ``frame`` in pixels, centred on the pixel: each in [-0.5, 0.5).
 
-    Index ``frame + 1`` is used so that frame 0 is not the degenerate (0, 0) point.
+    Point ``(frame mod cycle) + 1`` of the sequence is used: index 0 would be the degenerate
+    (0, 0) point, and the cycle repeats the same well-spread ``cycle`` positions forever.
     """
-    return radical_inverse(frame + 1, 2) - 0.5, radical_inverse(frame + 1, 3) - 0.5
+    index = frame % cycle + 1
+    return radical_inverse(index, 2) - 0.5, radical_inverse(index, 3) - 0.5

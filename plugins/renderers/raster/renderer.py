@@ -13,11 +13,11 @@ from harness import Frame, FrameMeta
 from .attributes import TextureTable, surface_kernel
 from .jitter import halton_jitter
 from .motion import motion_vectors
-from .shading import environment_image, shade
+from .shading import environment_image, shade, specular_table
 from .visibility import VisibilityRasterizer
 
 PROVIDES = frozenset({"color", "albedo", "normal", "depth", "position", "object_id", "motion"})
-MAX_REFERENCE_SUPERSAMPLE = 8
+MAX_REFERENCE_SUPERSAMPLE = 16
 
 
 @dataclass
@@ -47,8 +47,8 @@ class RasterRenderer:
         ``s``: the ``color`` channel of :meth:`render` averages an ``s x s`` grid of sub-pixel
         samples (box filter); G-buffer channels always come from the (jittered) pixel centre.
     jitter : bool
-        Offset the projection of frame ``t`` by the Halton (2, 3) point ``t + 1`` (minus 0.5)
-        for temporal anti-aliasing; the offset is in ``FrameMeta.jitter``.
+        Offset the projection of frame ``t`` by the Halton (2, 3) point ``(t mod 16) + 1``
+        (minus 0.5) for temporal anti-aliasing; the offset is in ``FrameMeta.jitter``.
     """
 
     def __init__(self, supersample: int = 1, jitter: bool = False):
@@ -80,7 +80,7 @@ class RasterRenderer:
             env = scene.environment
             self._tables[key] = (TextureTable(scene.materials),
                                  np.array([m.emission for m in scene.materials] or [[0.0] * 3], np.float32),
-                                 environment_image(env))
+                                 environment_image(env), specular_table(scene.materials))
             while len(self._tables) > 1:
                 self._tables.popitem(last=False)
         return self._tables[key]
@@ -129,7 +129,7 @@ class RasterRenderer:
 
         ``g`` and ``albedo`` may pass the pixel-centre G-buffer already computed when ``s == 1``.
         """
-        table, emission_table, env_image = self._table(scene)
+        table, emission_table, env_image, specular = self._table(scene)
         big_w, big_h = width * s, height * s
         # sub-pixel (a, b) of pixel (i, j) is big pixel (i*s + b, j*s + a): its centre sits at
         # ((a + 0.5) / s - 0.5) pixels from the small pixel's centre
@@ -138,9 +138,7 @@ class RasterRenderer:
             g = self.gbuffer(scene, frame, big_w, big_h, big_jitter)
         if albedo is None:
             albedo = table.albedo(g.material, g.uv)
-        emission = np.zeros_like(albedo)
-        emission[g.hit] = emission_table[g.material[g.hit]]
-        color = shade(scene, g.hit, albedo, g.normal, emission, g.direction, env_image)
+        color = shade(scene, g.material, albedo, g.normal, g.direction, emission_table, specular, env_image)
         if s == 1:
             return color
         return color.reshape(height, s, width, s, 3).mean(axis=(1, 3), dtype=np.float64).astype(np.float32)
@@ -164,7 +162,7 @@ class RasterRenderer:
         g = albedo = None
         if channels - {"color"} or self.supersample == 1:
             g = self.gbuffer(scene, frame_index, width, height, jitter)
-            table, _, _ = self._table(scene)
+            table = self._table(scene)[0]
             albedo = table.albedo(g.material, g.uv)
             if "albedo" in channels:
                 out["albedo"] = albedo
@@ -189,10 +187,12 @@ class RasterRenderer:
                          extra={"max_depth": scene.max_depth, "spp": spp, "supersample": self.supersample})
         return Frame(out, meta, owner="raster")
 
-    def reference(self, scene, frame_index: int, *, spp: int = 16, seed: int = 0, resolution=None) -> np.ndarray:
+    def reference(self, scene, frame_index: int, *, spp: int = 64, seed: int = 0, resolution=None) -> np.ndarray:
         """The same shading as :meth:`render`'s colour, box-filtered over ``s x s`` unjittered samples.
 
-        ``s = clamp(isqrt(spp), 1, 8)``: the default ``spp = 16`` gives a 4 x 4 supersampled reference.
+        ``s = clamp(isqrt(spp), 1, 16)``: the default ``spp = 64`` gives the 8 x 8 supersampled
+        (SSAA) reference of the anti-aliasing task. The ``s W x s H`` image is rendered whole
+        (about 100 bytes a sample: 16 x 16 at 320 x 180 peaks near 3.5 GB).
         """
         width, height = resolution or scene.resolution
         s = min(max(isqrt(max(int(spp), 1)), 1), MAX_REFERENCE_SUPERSAMPLE)

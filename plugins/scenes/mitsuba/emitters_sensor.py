@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import CameraPath, Environment, Sun
+from harness import CameraPath, Environment, Sun, read_texture
 
 from .xmlscene import find, get_color, get_float, get_int, get_string, transform, vector, warn
 
@@ -18,16 +18,14 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
     """An ``<emitter>`` that is not attached to a shape as (environment, sun); either may be None."""
     kind = node.get("type")
     if kind == "constant":
-        return Environment(kind="constant", radiance=get_color(node, "radiance", (1.0, 1.0, 1.0))), None
+        radiance = get_color(node, "radiance", (1.0, 1.0, 1.0), illuminant=True)
+        return Environment(kind="constant", radiance=radiance), None
     if kind == "envmap":
         matrix = transform(find(node, "toWorld"))
-        r = matrix[:3, :3]
-        rotation = float(np.degrees(np.arctan2(r[0, 2], r[0, 0])))
-        if abs(r[1, 1] - 1.0) > 1e-4:
-            warn("envmap toWorld with tilt approximated by its rotation about the y axis")
         scale = get_float(node, "scale", 1.0)
-        image = str(folder / get_string(node, "filename"))
-        return Environment(kind="map", image=image, radiance=(scale, scale, scale), rotation=rotation), None
+        image = read_texture(folder / get_string(node, "filename"))
+        image = envmap_to_harness(image, matrix[:3, :3])
+        return Environment(kind="map", image=image, radiance=(scale, scale, scale)), None
     if kind in ("sun", "sky", "sunsky"):
         direction_node = find(node, "sunDirection")
         if direction_node is not None:
@@ -38,7 +36,8 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
         env = sun = None
         if kind in ("sky", "sunsky"):
             scale = get_float(node, "skyScale" if kind == "sunsky" else "scale", 1.0)
-            warn(f"{kind}: Hosek-Wilkie sky approximated by a zenith-to-horizon gradient (scale {scale:g})")
+            warn(f"{kind}: Hosek-Wilkie sky approximated by a zenith-to-horizon gradient (scale {scale:g}): the "
+                 "model's fitted coefficient tables are not shipped with the harness")
             env = Environment(kind="sky", radiance=(0.06 * scale, 0.1 * scale, 0.2 * scale),
                               horizon=(0.16 * scale, 0.17 * scale, 0.18 * scale))
         if kind in ("sun", "sunsky"):
@@ -46,7 +45,8 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
             radius = SUN_RADIUS * get_float(node, "sunRadiusScale", 1.0)
             solid_angle = 2 * np.pi * (1 - np.cos(np.radians(radius)))
             irradiance = 1.0 * scale  # approximate: Mitsuba's sun at scale 1 is roughly unit irradiance here
-            warn(f"{kind}: sun spectrum approximated by white of irradiance {irradiance:g} at normal incidence")
+            warn(f"{kind}: sun approximated by a white disc of irradiance {irradiance:g} at normal incidence "
+                 "(Mitsuba's sun spectrum from turbidity is not computed)")
             radiance = (irradiance / solid_angle,) * 3
             sun = Sun(direction=tuple(direction), angular_radius=radius, radiance=radiance)
         return env, sun
@@ -97,3 +97,36 @@ def camera(node: ET.Element) -> tuple[CameraPath, tuple[int, int]]:
     path = CameraPath(positions=[eye], targets=[eye + forward], up=tuple(up / np.linalg.norm(up)), fov=vertical,
                       near=min(near, 0.05), far=far)
     return path, (width, height)
+
+
+def envmap_to_harness(image: np.ndarray, to_world: np.ndarray) -> np.ndarray:
+    """Resample a Mitsuba ``envmap`` image with its ``toWorld`` rotation into the harness's map convention.
+
+    Mitsuba looks up world direction ``d`` at ``v = toWorld^-1 d``, ``u = atan2(v_x, -v_z) / (2 pi)``
+    (mod 1), ``v = acos(v_y) / pi``, bilinearly (texel centres at half-integers, u wrapping). The
+    harness map (no rotation) has ``u = 0.5 + atan2(d_x, -d_z) / (2 pi)``, ``v = acos(d_y) / pi``.
+    Each texel of the result holds Mitsuba's radiance in the direction of its centre, at the same
+    resolution as the source, so any rotation (tilts included) is exact up to this resampling.
+    """
+    img = np.asarray(image, np.float32)[..., :3]
+    h, w = img.shape[:2]
+    theta = (np.arange(h) + 0.5) / h * np.pi
+    phi = ((np.arange(w) + 0.5) / w - 0.5) * 2.0 * np.pi
+    st = np.sin(theta)[:, None]
+    d = np.stack([st * np.sin(phi)[None, :], np.broadcast_to(np.cos(theta)[:, None], (h, w)),
+                  -st * np.cos(phi)[None, :]], axis=-1)
+    local = d @ np.linalg.inv(np.asarray(to_world, float)).T
+    local /= np.maximum(np.linalg.norm(local, axis=-1, keepdims=True), 1e-12)
+    u = np.mod(np.arctan2(local[..., 0], -local[..., 2]) / (2.0 * np.pi), 1.0)
+    v = np.arccos(np.clip(local[..., 1], -1.0, 1.0)) / np.pi
+    x = u * w - 0.5
+    y = np.clip(v * h - 0.5, 0.0, h - 1.0)
+    x0 = np.floor(x).astype(int)
+    y0 = np.minimum(np.floor(y).astype(int), h - 2) if h > 1 else np.zeros_like(x0)
+    fx = (x - x0)[..., None]
+    fy = (y - y0)[..., None] if h > 1 else np.zeros_like(fx)
+    x0 %= w
+    x1 = (x0 + 1) % w
+    y1 = np.minimum(y0 + 1, h - 1)
+    out = ((1 - fy) * ((1 - fx) * img[y0, x0] + fx * img[y0, x1]) + fy * ((1 - fx) * img[y1, x0] + fx * img[y1, x1]))
+    return np.ascontiguousarray(out, np.float32)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -9,10 +11,10 @@ import numpy as np
 
 from harness import Material, Scene, SceneObject
 
-from .bsdfs import BsdfContext, convert, with_emission
+from .bsdfs import BsdfContext, describe, has_texture, is_glossy, material
 from .emitters_sensor import camera, environment_and_sun
 from .shapes import load_shape, to_polydata
-from .xmlscene import get_color, parse, version, warn
+from .xmlscene import MitsubaWarning, get_color, parse, version, warn
 
 SKIPPED_QUIETLY = {"default", "integrator"}
 
@@ -43,23 +45,56 @@ def _is_scene(path: Path) -> bool:
 def load(path: Path, name: str | None = None) -> Scene:
     """Load the Mitsuba scene at ``path`` (a folder or an XML file).
 
-    Unsupported elements and approximations are reported with :class:`MitsubaWarning`; nothing
-    is fatal except an unreadable file.
+    Unsupported elements and approximations are reported with :class:`MitsubaWarning`, and the
+    distinct messages are kept in ``scene.params["approximations"]`` (for the run's manifest);
+    nothing is fatal except an unreadable file. Every material's Mitsuba BSDF is described in
+    ``scene.params["bsdfs"]`` (see :mod:`.bsdfs`).
     """
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", MitsubaWarning)
+        scene = _load(path, name)
+    messages = []
+    for item in caught:
+        if issubclass(item.category, MitsubaWarning):
+            text = str(item.message)
+            if text not in messages:
+                messages.append(text)
+        warnings.warn_explicit(item.message, item.category, item.filename, item.lineno)
+    scene.params["approximations"] = messages
+    return scene
+
+
+class _Materials:
+    """The scene's materials: one per distinct (description, emission), with their descriptions."""
+
+    def __init__(self):
+        self.materials: list[Material] = []
+        self.entries: list[dict] = []
+        self._index: dict = {}
+
+    def add(self, desc: dict, name: str, emission=None) -> int:
+        ident = (id(desc), None if emission is None else tuple(emission))
+        if ident not in self._index:
+            mat = material(desc, name)
+            if emission is not None:
+                mat = dataclasses.replace(mat, name=f"{name}+emitter", emission=tuple(emission))
+            self._index[ident] = len(self.materials)
+            self.materials.append(mat)
+            self.entries.append({"bsdf": desc, "one_sided_emission": emission is not None})
+        return self._index[ident]
+
+
+def _load(path: Path, name: str | None) -> Scene:
     xml_path = find_scene_file(Path(path))
     if xml_path is None:
         raise FileNotFoundError(f"no Mitsuba scene XML in {path}")
     folder = xml_path.parent
     root = parse(xml_path)
-    textures = {t.get("id"): t for t in root.findall("texture") if t.get("id")}
-    ctx = BsdfContext(folder, textures)
-    materials: list[Material] = []
-    named: dict[str, int] = {}
+    ctx = BsdfContext(folder, root)
+    table = _Materials()
     for node in root.findall("bsdf"):
-        ident = node.get("id") or f"bsdf{len(materials)}"
-        named[ident] = len(materials)
-        materials.append(convert(node, ident, ctx))
-    default_material = None
+        describe(node, ctx)
+    default_bsdf = {"type": "diffuse", "reflectance": 0.5}
     objects: list[SceneObject] = []
     environment = sun = cam = None
     film = (768, 576)
@@ -70,19 +105,16 @@ def load(path: Path, name: str | None = None) -> Scene:
             mesh = load_shape(node, folder, cache)
             if mesh is None or len(mesh.corners) == 0:
                 continue
-            index = _shape_material(node, named, materials, ctx)
-            if index is None:
-                if default_material is None:
-                    default_material = len(materials)
-                    materials.append(Material("default", albedo=(0.5, 0.5, 0.5)))
-                index = default_material
+            desc, label = _shape_bsdf(node, ctx)
+            if desc is None:
+                desc, label = default_bsdf, "default"
+            emission = None
             emitter = node.find("emitter")
             if emitter is not None:
                 if emitter.get("type") != "area":
                     warn(f"shape emitter {emitter.get('type')!r} treated as an area light")
-                radiance = get_color(emitter, "radiance", (1.0, 1.0, 1.0))
-                materials.append(with_emission(materials[index], radiance, f"{materials[index].name}+emitter"))
-                index = len(materials) - 1
+                emission = get_color(emitter, "radiance", (1.0, 1.0, 1.0), illuminant=True)
+            index = table.add(desc, label, emission)
             objects.append(SceneObject(node.get("id") or f"shape{len(objects)}", to_polydata(mesh, index),
                                        material=index))
         elif tag == "emitter":
@@ -98,14 +130,13 @@ def load(path: Path, name: str | None = None) -> Scene:
     if cam is None:
         warn("scene has no sensor; using a camera looking at the scene's bounds")
         cam = _default_camera(objects)
-    glossy = any(m.kind in ("conductor", "mirror", "dielectric") or (m.kind == "plastic" and m.roughness < 0.3)
-                 for m in materials)
+    materials = table.materials
     tags = {"static", "mitsuba"}
-    if glossy:
+    if any(is_glossy(e["bsdf"]) for e in table.entries):
         tags.add("glossy")
     if any(m.is_emissive for m in materials):
         tags.add("emissive")
-    if any(m.texture is not None for m in materials):
+    if any(has_texture(e["bsdf"]) for e in table.entries):
         tags.add("textured")
     if sun is not None:
         tags.add("sun")
@@ -122,23 +153,24 @@ def load(path: Path, name: str | None = None) -> Scene:
         environment=environment,
         camera=cam,
         params={"format": "mitsuba", "version": ".".join(map(str, version(root))), "file": xml_path.name,
-                "film_resolution": list(film)},
+                "film_resolution": list(film), "bsdfs": table.entries},
         max_depth=5,
         source=str(folder),
     )
 
 
-def _shape_material(node: ET.Element, named: dict, materials: list, ctx: BsdfContext) -> int | None:
+def _shape_bsdf(node: ET.Element, ctx: BsdfContext) -> tuple[dict | None, str]:
+    """The shape's BSDF description (inline or by reference to an id anywhere in the file) and a label."""
     inline = node.find("bsdf")
     if inline is not None:
-        materials.append(convert(inline, inline.get("id") or f"{node.get('id', 'shape')}-bsdf", ctx))
-        return len(materials) - 1
+        return describe(inline, ctx), inline.get("id") or f"{node.get('id', 'shape')}-bsdf"
     for ref in node.findall("ref"):
-        if ref.get("name") in (None, "bsdf") and ref.get("id") in named:
-            return named[ref.get("id")]
-        if ref.get("id") not in named:
+        target = ctx.ids.get(ref.get("id"))
+        if ref.get("name") in (None, "bsdf") and target is not None and target.tag == "bsdf":
+            return describe(target, ctx), ref.get("id")
+        if target is None:
             warn(f"shape references unknown bsdf {ref.get('id')!r}; using the default material")
-    return None
+    return None, "default"
 
 
 def _default_camera(objects: list):

@@ -34,22 +34,30 @@ def rectangle() -> MeshData:
                                      np.broadcast_to([0.0, 0.0, 1.0], s.shape + (3,))))
 
 
-def disk(segments: int = 32) -> MeshData:
-    """Mitsuba's disk: the unit disk in the z = 0 plane, facing +z."""
+def disk(segments: int = 64) -> MeshData:
+    """Mitsuba's disk: the unit disk in the z = 0 plane, facing +z, scaled to the exact area pi."""
     def f(s, t):
         phi = 2 * np.pi * t
         return (np.stack([s * np.cos(phi), s * np.sin(phi), 0 * s], -1),
                 np.broadcast_to([0.0, 0.0, 1.0], s.shape + (3,)))
-    return _grid(4, segments, f)
+    mesh = _grid(4, segments, f)
+    c = mesh.corners
+    area = 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1).sum()
+    return MeshData(c * np.sqrt(np.pi / area), mesh.normals, mesh.uvs)
 
 
-def sphere(center, radius: float, rings: int = 16, segments: int = 32) -> MeshData:
-    """A UV sphere with outward normals."""
+def sphere(center, radius: float, rings: int = 24, segments: int = 48) -> MeshData:
+    """A UV sphere with outward normals, scaled so that its area is the exact sphere's ``4 pi r^2``
+    (an emitting sphere then emits Mitsuba's power)."""
     def f(s, t):
         theta, phi = np.pi * s, 2 * np.pi * t
         n = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], -1)
-        return np.asarray(center) + radius * n, n
-    return _grid(rings, segments, f)
+        return n, n
+    unit = _grid(rings, segments, f)
+    c = unit.corners
+    area = 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1).sum()
+    scale = radius * np.sqrt(4.0 * np.pi / area)
+    return MeshData(np.asarray(center) + scale * c, unit.normals, unit.uvs)
 
 
 def cube() -> MeshData:

@@ -81,11 +81,23 @@ def get_string(element: ET.Element, name: str, default: str | None = None) -> st
     return default if node is None else node.get("value")
 
 
-def color_value(node: ET.Element) -> tuple[float, float, float] | None:
+# Mitsuba 3's RGB variants read a constant <spectrum> of an emitter as an equal-energy illuminant,
+# whose linear sRGB (white point D65) is this colour times the value
+EQUAL_ENERGY_RGB = (1.2047939, 0.9482910, 0.9089161)
+
+
+def color_value(node: ET.Element, illuminant: bool = False) -> tuple[float, float, float] | None:
     """An ``rgb``/``srgb``/``spectrum``/``float`` node as linear RGB, or None for other tags.
 
-    ``srgb`` is linearised; a ``spectrum`` with wavelength:value pairs is averaged (warned).
+    ``srgb`` is linearised; a ``spectrum`` with wavelength:value pairs is averaged (warned). With
+    ``illuminant`` (an emitter's radiance), a constant ``spectrum`` is an equal-energy spectrum
+    in sRGB, as Mitsuba 3 renders it: ``value * EQUAL_ENERGY_RGB``.
     """
+    if illuminant and node.tag == "spectrum":
+        plain = color_value(node)
+        if plain is not None and plain[0] == plain[1] == plain[2]:
+            return tuple(plain[0] * c for c in EQUAL_ENERGY_RGB)
+        return plain
     if node.tag == "float":
         v = float(node.get("value"))
         return (v, v, v)
@@ -122,11 +134,11 @@ def _srgb_to_linear(v: float) -> float:
     return v / 12.92 if v <= 0.04045 else ((v + 0.055) / 1.055) ** 2.4
 
 
-def get_color(element: ET.Element, name: str, default=None):
+def get_color(element: ET.Element, name: str, default=None, illuminant: bool = False):
     node = find(element, name)
     if node is None:
         return default
-    value = color_value(node)
+    value = color_value(node, illuminant)
     return default if value is None else value
 
 

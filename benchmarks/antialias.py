@@ -1,0 +1,266 @@
+"""Anti-aliasing benchmark: quality on the AA scenes, per-frame time, comparison pictures.
+
+Calls the ``raster`` renderer, the AA filters and the harness's metric plugins (``ssim``,
+``psnr``, ``flip``, ``temporal_error``) directly, in one process::
+
+    python benchmarks/antialias.py quality  [--reference-spp 64] [--out FILE.json]
+    python benchmarks/antialias.py timing   [--resolutions 1280x720,1920x1080] [--frames 6]
+    python benchmarks/antialias.py pictures [--scene aa-fence] [--frame 20] [--out-dir docs/images]
+
+``quality`` renders every scene of the ``antialias`` task (jittered input, SSAA references;
+renders are kept in ``datasets/cache/antialias/``), runs each filter configuration over each whole
+sequence from a camera cut, and prints per-scene and mean scores as Markdown tables, with a
+ghosting measure: the error in the pixels that showed a moving object during the last 4 frames
+but show something else now (where a trail would be). ``timing`` renders a few frames of
+``aa-fence`` at each resolution and times every filter on them, the filters alternating frame
+by frame; each filter's first call (compilation, warm-up) is reported apart.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import numpy as np
+
+os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+from harness import encode_srgb, load_plugins, write_png  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+CACHE = ROOT / "datasets" / "cache" / "antialias"
+#: (label, filter, parameters) of every configuration compared
+CONFIGS = [
+    ("noaa", "noaa", {}),
+    ("fxaa", "fxaa", {}),
+    ("taa", "taa", {}),
+    ("taa, no clipping", "taa", {"clipping": "none"}),
+    ("taa, min/max box", "taa", {"clipping": "minmax"}),
+    ("taa, no reconstruction", "taa", {"reconstruct": False}),
+    ("aa_rnn L2", "aa_rnn", {"layers": 2}),
+    ("aa_rnn L4", "aa_rnn", {"layers": 4}),
+    ("aa_rnn L6", "aa_rnn", {"layers": 6}),
+]
+TRAIL_FRAMES = 4
+
+
+def _configs(registry, only=None):
+    configs = [c for c in CONFIGS if c[1] in registry.filters]
+    if only:
+        configs = [c for c in configs if c[0] in only]
+    return configs
+
+
+#: the G-buffer rendered (and cached) with every input: what the AA filters may read
+GBUFFER = {"albedo", "normal", "depth", "object_id", "motion"}
+
+
+def render_scene(registry, name: str, channels: set, spp: int, resolution=None):
+    """Jittered frames and SSAA references of a whole scene (cached as .npz per scene and setting)."""
+    from harness import Frame, FrameMeta
+
+    spec = registry.get("scene", name)
+    scene = spec.factory()
+    w, h = resolution or scene.resolution
+    raster_spec = registry.get("renderer", "raster")
+    path = CACHE / f"{name}-{scene.content_hash()[:12]}-raster{raster_spec.version}-{w}x{h}-spp{spp}.npz"
+    channels = sorted(channels)
+    if path.is_file():
+        data = np.load(path)
+        frames = []
+        for t in range(scene.frame_count):
+            arrays = {c: data[f"{c}_{t}"] for c in ["color"] + channels}
+            frames.append(Frame(arrays, FrameMeta(index=t, scene=name, jitter=tuple(data[f"jitter_{t}"]),
+                                                  camera_cut=t == 0)))
+        return scene, frames, [data[f"ref_{t}"] for t in range(scene.frame_count)]
+    raster = raster_spec.factory(jitter=True)
+    frames, refs = [], []
+    for t in range(scene.frame_count):
+        frames.append(raster.render(scene, t, channels=set(channels), resolution=(w, h)))
+        refs.append(raster.reference(scene, t, spp=spp, resolution=(w, h)))
+    CACHE.mkdir(parents=True, exist_ok=True)
+    store = {}
+    for t, (f, r) in enumerate(zip(frames, refs)):
+        store.update({f"{c}_{t}": f[c] for c in ["color"] + channels})
+        store[f"jitter_{t}"] = np.asarray(f.meta.jitter)
+        store[f"ref_{t}"] = r
+    np.savez_compressed(path, **store)
+    return scene, frames, refs
+
+
+def run_filter(registry, name: str, params: dict, frames) -> list[np.ndarray]:
+    f = registry.get("filter", name).factory(backend="cpu", **params)
+    f.reset()
+    return [np.array(f(frame), copy=True) for frame in frames]
+
+
+def trail_masks(scene, frames) -> list[np.ndarray]:
+    """Per frame: pixels that showed a moving object in one of the last frames and do not now."""
+    moving = [k for k, obj in enumerate(scene.objects) if obj.transforms is not None]
+    on = [np.isin(f["object_id"], moving) for f in frames]
+    masks = []
+    for t in range(len(frames)):
+        was = np.zeros_like(on[t])
+        for k in range(1, TRAIL_FRAMES + 1):
+            if t - k >= 0:
+                was |= on[t - k]
+        masks.append(was & ~on[t])
+    return masks
+
+
+def quality(args) -> dict:
+    registry = load_plugins()
+    configs = _configs(registry, args.filters)
+    metrics = {m: registry.get("metric", m).factory() for m in ("ssim", "psnr", "flip", "temporal_error")}
+    scenes = sorted(n for n, s in registry.scenes.items() if "antialias" in s.tasks and s.suite)
+    results = {}
+    for name in scenes:
+        t0 = time.perf_counter()
+        scene, frames, refs = render_scene(registry, name, GBUFFER, args.reference_spp)
+        masks = trail_masks(scene, frames)
+        print(f"{name}: {len(frames)} frames {frames[0].width}x{frames[0].height}, rendered/read in "
+              f"{time.perf_counter() - t0:.0f} s", flush=True)
+        results[name] = {}
+        for label, fname, params in configs:
+            outs = run_filter(registry, fname, params, frames)
+            row = {m: float(np.mean([metrics[m](o, r) for o, r in zip(outs, refs)])) for m in ("ssim", "psnr", "flip")}
+            row["ssim_per_frame"] = [float(metrics["ssim"](o, r)) for o, r in zip(outs, refs)]
+            row["temporal_error"] = float(metrics["temporal_error"](outs, refs))
+            ghost = [np.abs(encode_srgb(o) - encode_srgb(r))[m].mean() for o, r, m in zip(outs, refs, masks)
+                     if m.sum() >= 4]
+            row["ghost"] = float(np.mean(ghost)) if ghost else float("nan")
+            results[name][label] = row
+            print(f"  {label:18s} SSIM {row['ssim']:.4f}  PSNR {row['psnr']:.2f}  FLIP {row['flip']:.4f}  "
+                  f"temporal {row['temporal_error']:.4f}  ghost {row['ghost']:.4f}", flush=True)
+    _quality_tables(results, [c[0] for c in configs], args.reference_spp)
+    return {"reference_spp": args.reference_spp, "scenes": results, "machine": _machine()}
+
+
+def _quality_tables(results, labels, spp) -> None:
+    scenes = list(results)
+    print(f"\nSSIM against the {int(np.sqrt(spp))}x{int(np.sqrt(spp))} SSAA reference (mean over frames)\n")
+    print("| filter | " + " | ".join(scenes) + " | mean |")
+    print("|---|" + "---|" * (len(scenes) + 1))
+    for label in labels:
+        values = [results[s][label]["ssim"] for s in scenes]
+        print(f"| {label} | " + " | ".join(f"{v:.4f}" for v in values) + f" | **{np.mean(values):.4f}** |")
+    print("\nMeans over the scenes: PSNR (dB, linear), FLIP (LDR), temporal_error, "
+          "ghost (sRGB abs. error in the trail)\n")
+    print("| filter | PSNR | FLIP | temporal_error | ghost |")
+    print("|---|---|---|---|---|")
+    for label in labels:
+        rows = [results[s][label] for s in scenes]
+        mean = {k: np.nanmean([r[k] for r in rows]) for k in ("psnr", "flip", "temporal_error", "ghost")}
+        print(f"| {label} | {mean['psnr']:.2f} | {mean['flip']:.4f} | {mean['temporal_error']:.4f} | "
+              f"{mean['ghost']:.4f} |")
+
+
+def timing(args) -> dict:
+    import numba
+
+    registry = load_plugins()
+    configs = _configs(registry, args.filters)
+    out = {"threads": numba.get_num_threads(), "machine": _machine(), "resolutions": {}}
+    for res in args.resolutions.split(","):
+        w, h = (int(v) for v in res.split("x"))
+        scene = registry.get("scene", args.scene).factory()
+        raster = registry.get("renderer", "raster").factory(jitter=True)
+        frames = [raster.render(scene, t, channels=GBUFFER, resolution=(w, h))
+                  for t in range(args.frames)]
+        filters = {label: registry.get("filter", fname).factory(backend="cpu", **params)
+                   for label, fname, params in configs}
+        wall = {label: [] for label in filters}
+        cpu = {label: [] for label in filters}
+        first = {}
+        for t, frame in enumerate(frames):
+            order = list(filters) if t % 2 == 0 else list(filters)[::-1]  # alternate the order
+            for label in order:
+                c0, w0 = time.process_time_ns(), time.perf_counter_ns()
+                filters[label](frame)
+                w1, c1 = time.perf_counter_ns(), time.process_time_ns()
+                if t == 0:
+                    first[label] = (w1 - w0) / 1e6
+                else:
+                    wall[label].append((w1 - w0) / 1e6)
+                    cpu[label].append((c1 - c0) / 1e6)
+        table = {label: {"median_ms": float(np.median(wall[label])), "min_ms": float(np.min(wall[label])),
+                         "max_ms": float(np.max(wall[label])), "cpu_ms": float(np.median(cpu[label])),
+                         "first_call_ms": first[label]} for label in filters}
+        out["resolutions"][res] = table
+        print(f"\n{res}, scene {args.scene}, {args.frames - 1} timed frames per filter (alternating), "
+              f"{out['threads']} threads\n")
+        print("| filter | ms median (min-max) | CPU ms median | first call ms |")
+        print("|---|---|---|---|")
+        for label, row in table.items():
+            print(f"| {label} | {row['median_ms']:.1f} ({row['min_ms']:.1f}-{row['max_ms']:.1f}) | "
+                  f"{row['cpu_ms']:.1f} | {row['first_call_ms']:.0f} |", flush=True)
+    return out
+
+
+def pictures(args) -> dict:
+    """Aliased, TAA, network and SSAA side by side, with 4x zooms of an edge and a texture crop."""
+    registry = load_plugins()
+    configs = [c for c in _configs(registry) if c[0] in ("noaa", "taa", args.network)]
+    scene, frames, refs = render_scene(registry, args.scene, GBUFFER, args.reference_spp)
+    t = args.frame
+    panels = [run_filter(registry, fname, params, frames[:t + 1])[t] for _, fname, params in configs] + [refs[t]]
+    rows = [np.concatenate(panels, axis=1)]
+    for box in (args.edge, args.texture):
+        y, x, size = (int(v) for v in box.split(","))
+        zooms = [np.repeat(np.repeat(p[y:y + size, x:x + size], args.zoom, 0), args.zoom, 1) for p in panels]
+        strip = np.concatenate(zooms, axis=1)
+        pad = rows[0].shape[1] - strip.shape[1]
+        rows.append(np.pad(strip, ((0, 0), (0, max(pad, 0)), (0, 0)))[:, :rows[0].shape[1]])
+    image = np.concatenate(rows, axis=0)
+    path = Path(args.out_dir) / f"aa_compare_{args.scene}.png"
+    write_png(path, image)
+    print(path)
+    return {"picture": str(path.relative_to(ROOT) if path.is_absolute() else path), "panels":
+            [c[0] for c in configs] + ["SSAA"], "frame": t, "edge": args.edge, "texture": args.texture}
+
+
+def _machine() -> dict:
+    cpu = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            cpu = next((line.split(":", 1)[1].strip() for line in fh if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version()}
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    q = sub.add_parser("quality")
+    q.add_argument("--reference-spp", type=int, default=64)
+    q.add_argument("--filters", type=lambda s: s.split(","), default=None, help="labels of CONFIGS to run")
+    q.add_argument("--out", default=None)
+    t = sub.add_parser("timing")
+    t.add_argument("--resolutions", default="1280x720,1920x1080")
+    t.add_argument("--frames", type=int, default=6)
+    t.add_argument("--scene", default="aa-fence")
+    t.add_argument("--filters", type=lambda s: s.split(","), default=None)
+    t.add_argument("--out", default=None)
+    p = sub.add_parser("pictures")
+    p.add_argument("--scene", default="aa-fence")
+    p.add_argument("--frame", type=int, default=20)
+    p.add_argument("--network", default="aa_rnn L4")
+    p.add_argument("--reference-spp", type=int, default=64)
+    p.add_argument("--edge", default="60,150,40", help="y,x,size of the edge crop")
+    p.add_argument("--texture", default="20,60,40", help="y,x,size of the texture crop")
+    p.add_argument("--zoom", type=int, default=4)
+    p.add_argument("--out-dir", default=str(ROOT / "docs" / "images"))
+    p.add_argument("--out", default=None)
+    args = parser.parse_args(argv)
+    result = {"quality": quality, "timing": timing, "pictures": pictures}[args.command](args)
+    if getattr(args, "out", None):
+        Path(args.out).write_text(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()

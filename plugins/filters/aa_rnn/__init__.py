@@ -1,0 +1,47 @@
+"""The ``aa_rnn`` filter: a recurrent G-buffer-guided CNN for real-time anti-aliasing.
+
+Inputs of frame t: the aliased colour, normals and depth, and the network's own previous output
+warped to frame t by the motion vectors (the recurrent state). A stack of bias-free 3x3
+convolutions with 32 channels and ReLU and a 3x3 head predict a correction of the colour. Trained
+with PyTorch on random procedural scenes (never the benchmark scenes) against 8x8 SSAA; inference
+with ``torch.inference_mode`` on the CPU (or a CUDA GPU). See ``docs/antialias.md``.
+"""
+
+from harness import FilterSpec, Param, hookimpl
+
+from .filter import BACKENDS, AARNNFilter
+from .weights import DEFAULT_LAYERS
+
+VERSION = "1.0"
+PARAMS = {
+    "layers": Param(DEFAULT_LAYERS, min=1, max=16, doc="hidden 3x3x32 conv + ReLU layers (shipped: 2, 4, 6)"),
+    "weights": Param(None, type="str", doc="a weights file; null for the shipped weights of `layers`"),
+}
+
+
+def train_aa_rnn(seed: int = 0, output=None, quick: bool = False):
+    """Train the network and write its weights (``denoise-bench train aa_rnn``).
+
+    See :func:`plugins.filters.aa_rnn.train.train`.
+    """
+    from .train import train
+
+    return train(seed=seed, output=output, quick=quick)
+
+
+@hookimpl
+def register_filters():
+    return [
+        FilterSpec(
+            name="aa_rnn",
+            version=VERSION,
+            factory=AARNNFilter,
+            requires={"color", "normal", "depth", "motion"},
+            temporal=True,
+            backends=BACKENDS,
+            params=PARAMS,
+            tasks={"antialias"},
+            description="recurrent G-buffer CNN anti-aliasing (warped previous output + colour, normals, depth)",
+            trainer=train_aa_rnn,
+        )
+    ]

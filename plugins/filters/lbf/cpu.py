@@ -1,0 +1,411 @@
+"""LBF on the CPU (Numba): signals, features + network fused per pixel, a vectorised filter.
+
+Stages of :class:`Denoiser`:
+
+``signals``
+    The variance stand-in when the frame carries none, the frame's position scale, the 13
+    planar signals (:func:`.kernels.signals_px`) with the Haar details, and the filter's
+    planar colour and sanitised variance planes, in the passes that read the frame. NaN colour
+    is filtered as 0 and +-Inf as +-float32 max (the harness repairs or rejects non-finite
+    colour before a filter sees it; this keeps one bad pixel from spreading).
+``network``
+    Per pixel: the 7x7 means (from per-row vertical sums, so no full-frame box buffer), the 36
+    secondary features (:func:`.kernels.combine_px`) and the network
+    (:func:`.kernels.mlp_px`); only the 6 bandwidths are stored.
+``bilateral``
+    The cross-bilateral filter over rows: float32 distances and weights
+    (:func:`.fastexp.exp_neg`), loops along the row that vectorise, column-padded planes so
+    that every tap is an in-bounds load, float32 partial sums per window row added in float64.
+
+Rows (or tiles of a row) are dealt cyclically to ``numba.get_num_threads()`` workers, so the
+work of the sky and of the geometry is shared evenly. Every buffer is kept between calls of the
+same size (no per-call allocation but the output).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from . import kernels as K
+from .fastexp import exp_neg
+from .features import FEATURE_VAR_FLOOR, Inputs, position_stats
+
+BLOCK = 256
+#: colours above this magnitude are scaled down by a power of two where the float32 filter sums
+#: them (the distances use the unscaled colour)
+COLOUR_LIMIT = 2.0**100
+#: the filter's variance planes are clamped here, so ``var_i + var_j + 1e-10`` is finite and > 0
+VAR_PLANE_MAX = 1e38
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+_signals_px = njit(cache=True)(K.signals_px)
+_haar_px = njit(cache=True)(K.haar_px)
+_box7_px = njit(cache=True)(K.box7_px)
+_combine_px = njit(cache=True)(K.combine_px)
+_mlp_px = njit(cache=True)(K.mlp_px)
+_color_rows_px = njit(cache=True)(K.color_rows_px)
+_variance_estimate_px = njit(cache=True)(K.variance_estimate_px)
+_clean_variance = njit(cache=True)(K.clean_variance)
+
+
+@njit(parallel=True, cache=True)
+def _color_rows(color, r, dst, slots):
+    h, w, _ = color.shape
+    for s in prange(slots):
+        for i in range(s, h, slots):
+            for j in range(w):
+                _color_rows_px(i, j, color, r, dst)
+
+
+@njit(parallel=True, cache=True)
+def _variance_estimate(rows, r, out, slots):
+    h, w, _ = rows.shape
+    for s in prange(slots):
+        for i in range(s, h, slots):
+            for j in range(w):
+                _variance_estimate_px(i, j, rows, r, out)
+
+
+@njit(parallel=True, cache=True)
+def _signals(color, variance, position, normal, albedo, vis, has_vis, spp, has_spp, mu0, mu1, mu2,
+             inv_scale, sig, aux, pad, cplane, vplane, peaks, slots):
+    h, w, _ = color.shape
+    for s in prange(slots):
+        for i in range(s, h, slots):
+            cmax = 0.0
+            for j in range(w):
+                _signals_px(i, j, color, variance, position, normal, albedo, vis, has_vis, spp,
+                            has_spp, mu0, mu1, mu2, inv_scale, sig, aux)
+                for ch in range(3):
+                    c = np.float64(color[i, j, ch])
+                    c = min(max(c, -_FLOAT32_MAX), _FLOAT32_MAX) if c == c else 0.0
+                    cplane[ch, i, pad + j] = c
+                    v = min(_clean_variance(np.float64(variance[i, j, ch])), VAR_PLANE_MAX)
+                    vplane[ch, i, pad + j] = v
+                    cmax = max(cmax, abs(c))
+            peaks[i] = cmax
+
+
+@njit(parallel=True, cache=True)
+def _haar(sig, hh, slots):
+    h = sig.shape[1]
+    w = sig.shape[2]
+    for s in prange(slots):
+        for i in range(s, h, slots):
+            for j in range(w):
+                _haar_px(i, j, sig, hh)
+
+
+@njit(cache=True, fastmath=True)
+def _vertical7(sig, aux, i, v):
+    """``v[ch, j]``: sums over the clamped rows i-3..i+3 of the signals, squares and aux 0-1."""
+    h = sig.shape[1]
+    w = sig.shape[2]
+    v[:, :w] = 0.0
+    for di in range(-3, 4):
+        ii = min(max(i + di, 0), h - 1)
+        for ch in range(K.N_SIG):
+            src = sig[ch, ii]
+            s1 = v[ch]
+            s2 = v[K.N_SIG + ch]
+            for j in range(w):
+                x = np.float64(src[j])
+                s1[j] += x
+                s2[j] += x * x
+        a0 = v[2 * K.N_SIG]
+        a1 = v[2 * K.N_SIG + 1]
+        for j in range(w):
+            a0[j] += aux[ii, j, 0]
+            a1[j] += aux[ii, j, 1]
+
+
+@njit(cache=True, fastmath=True)
+def _horizontal7(v, box):
+    """``box[ch, j]``: sums of ``v[ch]`` over the clamped columns j-3..j+3 (vectorised inside)."""
+    w = v.shape[1]
+    for ch in range(v.shape[0]):
+        src = v[ch]
+        dst = box[ch]
+        if w > 6:
+            inner = dst[3:w - 3]
+            inner[:] = 0.0
+            for dj in range(7):
+                part = src[dj:dj + w - 6]
+                for j in range(w - 6):
+                    inner[j] += part[j]
+        for j in list(range(min(3, w))) + list(range(max(w - 3, 3), w)):
+            acc = 0.0
+            for dj in range(-3, 4):
+                acc += src[min(max(j + dj, 0), w - 1)]
+            dst[j] = acc
+
+
+@njit(parallel=True, cache=True)
+def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_out, keep, slots):
+    h = sig.shape[1]
+    w = sig.shape[2]
+    for s in prange(slots):
+        v = np.empty((K.N_BOX7, w))
+        box = np.empty((K.N_BOX7, w))
+        col7 = np.empty(K.N_BOX7)
+        med = np.empty(9)
+        feat = np.empty(K.N_FEATURES)
+        z = np.empty(K.N_FEATURES)
+        hidden = np.empty(K.N_HIDDEN)
+        out = np.empty(K.N_OUT)
+        for i in range(s, h, slots):
+            _vertical7(sig, aux, i, v)
+            _horizontal7(v, box)
+            for j in range(w):
+                for ch in range(K.N_BOX7):
+                    col7[ch] = box[ch, j] / 49.0
+                _combine_px(i, j, sig, aux, hh, col7, med, feat)
+                if keep:
+                    for f in range(K.N_FEATURES):
+                        feat_out[i, j, f] = feat[f]
+                _mlp_px(feat, mean, inv_std, w1, b1, w2, b2, z, hidden, out)
+                for o in range(K.N_OUT):
+                    params[o, i, j] = out[o]
+
+
+@njit(cache=True, fastmath=True)
+def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0, n, cen, part,
+                 acc, out):
+    """Filter the pixels ``(i, j0 .. j0 + n)`` (see :func:`.kernels.filter_px` for D).
+
+    Every term of D is finite or +Inf, never NaN (bounded features, variance planes <= 1e38,
+    colour bandwidth >= 1e-30), and a tap with ``D > 40`` (Inf included) has weight 0. The
+    weighted colours are summed as ``colour * scale`` (a power of two, 1 unless the colour
+    exceeds 2^100) so that float32 sums cannot overflow.
+    """
+    h = sp.shape[1]
+    a = pad + j0
+    f32 = np.float32
+    # per-pixel bandwidths of the tile (float32), the feature ones divided by the floor
+    p_a = cen[0]
+    p_c = cen[1]
+    p_p = cen[2]
+    p_n = cen[3]
+    p_al = cen[4]
+    p_v = cen[5]
+    wt = cen[6]
+    for j in range(n):
+        p_a[j] = params[0, i, j0 + j]
+        p_c[j] = max(params[1, i, j0 + j], K.MIN_BANDWIDTH)
+        p_p[j] = params[2, i, j0 + j] * inv_tau
+        p_n[j] = params[3, i, j0 + j] * inv_tau
+        p_al[j] = params[4, i, j0 + j] * inv_tau
+        p_v[j] = params[5, i, j0 + j] * inv_tau
+    x3 = sp[3, i, a:a + n]
+    x4 = sp[4, i, a:a + n]
+    x5 = sp[5, i, a:a + n]
+    x6 = sp[6, i, a:a + n]
+    x7 = sp[7, i, a:a + n]
+    x8 = sp[8, i, a:a + n]
+    x9 = sp[9, i, a:a + n]
+    x10 = sp[10, i, a:a + n]
+    x11 = sp[11, i, a:a + n]
+    x12 = sp[12, i, a:a + n]
+    c0 = cp[0, i, a:a + n]
+    c1 = cp[1, i, a:a + n]
+    c2 = cp[2, i, a:a + n]
+    u0 = vp[0, i, a:a + n]
+    u1 = vp[1, i, a:a + n]
+    u2 = vp[2, i, a:a + n]
+    acc[:, :n] = 0.0
+    cut = f32(K.D_CUT)
+    eps = f32(1e-10)
+    for dy in range(-radius, radius + 1):
+        ii = i + dy
+        if ii < 0 or ii >= h:
+            continue
+        part[:, :n] = 0.0
+        s0 = part[0, :n]
+        s1 = part[1, :n]
+        s2 = part[2, :n]
+        s3 = part[3, :n]
+        for dx in range(-radius, radius + 1):
+            b = a + dx
+            d2 = f32(dy * dy + dx * dx)
+            y3 = sp[3, ii, b:b + n]
+            y4 = sp[4, ii, b:b + n]
+            y5 = sp[5, ii, b:b + n]
+            y6 = sp[6, ii, b:b + n]
+            y7 = sp[7, ii, b:b + n]
+            y8 = sp[8, ii, b:b + n]
+            y9 = sp[9, ii, b:b + n]
+            y10 = sp[10, ii, b:b + n]
+            y11 = sp[11, ii, b:b + n]
+            y12 = sp[12, ii, b:b + n]
+            q0 = cp[0, ii, b:b + n]
+            q1 = cp[1, ii, b:b + n]
+            q2 = cp[2, ii, b:b + n]
+            w0 = vp[0, ii, b:b + n]
+            w1 = vp[1, ii, b:b + n]
+            w2 = vp[2, ii, b:b + n]
+            m = inside[ii, b:b + n]
+            for j in range(n):
+                t0 = x3[j] - y3[j]
+                t1 = x4[j] - y4[j]
+                t2 = x5[j] - y5[j]
+                d = p_a[j] * d2 + p_p[j] * (t0 * t0 + t1 * t1 + t2 * t2)
+                t0 = x6[j] - y6[j]
+                t1 = x7[j] - y7[j]
+                t2 = x8[j] - y8[j]
+                d += p_n[j] * (t0 * t0 + t1 * t1 + t2 * t2)
+                t0 = x9[j] - y9[j]
+                t1 = x10[j] - y10[j]
+                t2 = x11[j] - y11[j]
+                d += p_al[j] * (t0 * t0 + t1 * t1 + t2 * t2)
+                t0 = x12[j] - y12[j]
+                d += p_v[j] * (t0 * t0)
+                e0 = c0[j] - q0[j]
+                e1 = c1[j] - q1[j]
+                e2 = c2[j] - q2[j]
+                # max(., eps) is a no-op (variances >= 0) that lets LLVM vectorise the loop
+                d += p_c[j] * (e0 * e0 / max(u0[j] + w0[j] + eps, eps)
+                               + e1 * e1 / max(u1[j] + w1[j] + eps, eps)
+                               + e2 * e2 / max(u2[j] + w2[j] + eps, eps))
+                wt[j] = exp_neg(d) * m[j] if d <= cut else f32(0.0)
+            for j in range(n):
+                e = wt[j] * scale
+                s0[j] += e * q0[j]
+                s1[j] += e * q1[j]
+                s2[j] += e * q2[j]
+                s3[j] += wt[j]
+        for ch in range(4):
+            t = acc[ch, :n]
+            src = part[ch, :n]
+            for j in range(n):
+                t[j] += src[j]
+    for j in range(n):
+        if u0[j] + u1[j] + u2[j] == 0:  # noise-free pixel: copied
+            out[i, j0 + j, 0] = c0[j] * scale
+            out[i, j0 + j, 1] = c1[j] * scale
+            out[i, j0 + j, 2] = c2[j] * scale
+        else:  # acc[3] >= 1: the centre tap
+            out[i, j0 + j, 0] = acc[0, j] / acc[3, j]
+            out[i, j0 + j, 1] = acc[1, j] / acc[3, j]
+            out[i, j0 + j, 2] = acc[2, j] / acc[3, j]
+
+
+@njit(parallel=True, cache=True)
+def _filter(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, out, slots):
+    h = out.shape[0]
+    w = out.shape[1]
+    n_blocks = (w + BLOCK - 1) // BLOCK
+    items = h * n_blocks
+    for s in prange(slots):
+        cen = np.empty((7, BLOCK), np.float32)
+        part = np.empty((4, BLOCK), np.float32)
+        acc = np.empty((4, BLOCK))
+        for t in range(s, items, slots):
+            i = t // n_blocks
+            j0 = (t % n_blocks) * BLOCK
+            _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0,
+                         min(BLOCK, w - j0), cen, part, acc, out)
+
+
+def _buffer(work: dict, name: str, shape: tuple, dtype, zero: bool = False) -> np.ndarray:
+    a = work.get(name)
+    if a is None or a.shape != shape or a.dtype != dtype:
+        a = work[name] = np.zeros(shape, dtype) if zero else np.empty(shape, dtype)
+    return a
+
+
+class Denoiser:
+    """The LBF pipeline on the CPU (the ``cpu`` backend's entry point).
+
+    Parameters
+    ----------
+    model : LBFWeights
+
+    Notes
+    -----
+    Calling it with ``(inputs, radius)`` returns the output (H, W, 3) float32 and the
+    milliseconds of the ``signals``, ``network`` and ``bilateral`` stages. Scratch (about
+    ``(13 + 6 + 4) * 4 + 32`` bytes per pixel, plus the column padding of the planes) is kept
+    between calls of the same size. With ``keep`` set, the last call's variance, signals,
+    features and bandwidths are kept in ``last`` (tests and analysis).
+    """
+
+    def __init__(self, model):
+        self.model = model
+        self.work: dict = {}
+        self.keep = False
+        self.last: dict = {}
+
+    def __call__(self, inputs: Inputs, radius: int):
+        t0 = time.perf_counter_ns()
+        sp, cp, vp, inside, pad, hh, aux = self._signals(inputs, radius)
+        t1 = time.perf_counter_ns()
+        params = self._network(sp[:, :, pad:pad + inputs.shape[1]], aux, hh)
+        t2 = time.perf_counter_ns()
+        out = np.empty(inputs.shape + (3,), np.float32)
+        _filter(sp, cp, vp, inside, params, int(radius), np.float32(1.0 / FEATURE_VAR_FLOOR),
+                np.float32(self.work["scale"]), pad, out, numba.get_num_threads())
+        if self.work["scale"] != 1.0:
+            out /= np.float32(self.work["scale"])
+        t3 = time.perf_counter_ns()
+        stage_ms = {"signals": (t1 - t0) / 1e6, "network": (t2 - t1) / 1e6,
+                    "bilateral": (t3 - t2) / 1e6}
+        return out, stage_ms
+
+    def _signals(self, inputs: Inputs, radius: int):
+        work = self.work
+        slots = numba.get_num_threads()
+        h, w = inputs.shape
+        pad = max(int(radius), 1)
+        wp = w + 2 * pad
+        variance = inputs.variance
+        if inputs.estimate_variance:
+            rows = _buffer(work, "color_rows", (h, w, 6), np.float64)
+            _color_rows(inputs.color, K.VAR_RADIUS, rows, slots)
+            variance = _buffer(work, "variance", (h, w, 3), np.float32)
+            _variance_estimate(rows, K.VAR_RADIUS, variance, slots)
+        mu, scale = position_stats(inputs.position, inputs.normal)
+        sp = _buffer(work, "sig", (K.N_SIG, h, wp), np.float32, zero=True)
+        cp = _buffer(work, "color", (3, h, wp), np.float32, zero=True)
+        vp = _buffer(work, "var", (3, h, wp), np.float32, zero=True)
+        inside = work.get("inside")
+        if inside is None or inside.shape != (h, wp):
+            inside = work["inside"] = np.zeros((h, wp), np.float32)
+            inside[:, pad:pad + w] = 1.0
+        aux = _buffer(work, "aux", (h, w, 3), np.float32)
+        peaks = _buffer(work, "peaks", (h,), np.float64)
+        _signals(inputs.color, variance, inputs.position, inputs.normal, inputs.albedo, inputs.vis,
+                 inputs.has_vis, inputs.spp, inputs.has_spp, float(mu[0]), float(mu[1]),
+                 float(mu[2]), 1.0 / scale, sp[:, :, pad:pad + w], aux, pad, cp, vp, peaks, slots)
+        work["scale"] = _colour_scale(peaks)
+        hh = _buffer(work, "haar", (h, w, 5), np.float32)
+        _haar(sp[:, :, pad:pad + w], hh, slots)
+        if self.keep:
+            self.last = {"variance": np.array(variance),
+                         "sig": np.moveaxis(sp[:, :, pad:pad + w], 0, -1).copy()}
+        return sp, cp, vp, inside, pad, hh, aux
+
+    def _network(self, sig, aux, hh):
+        h, w = sig.shape[1:]
+        m = self.model
+        params = _buffer(self.work, "params", (K.N_OUT, h, w), np.float32)
+        feat = np.empty((h, w, K.N_FEATURES), np.float32) if self.keep else \
+            np.empty((1, 1, 1), np.float32)
+        _features_network(sig, aux, hh, m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, params, feat,
+                          self.keep, numba.get_num_threads())
+        if self.keep:
+            self.last["features"] = feat
+            self.last["params"] = np.moveaxis(params, 0, -1).copy()
+        return params
+
+
+def _colour_scale(peaks: np.ndarray) -> float:
+    """1, or the power of two that brings the largest colour magnitude under 2^100."""
+    cmax = float(peaks.max(initial=0.0))
+    if cmax <= COLOUR_LIMIT:
+        return 1.0
+    return 2.0 ** (100 - math.ceil(math.log2(min(cmax, _FLOAT32_MAX))))

@@ -1,0 +1,35 @@
+"""The ``taa`` filter: temporal anti-aliasing as engines ship it (Karis 2014, Salvi 2016).
+
+Reprojection of the previous output by the motion vectors (closest-depth motion in 3x3, the
+jitter removed), a Catmull-Rom history fetch, rejection of disoccluded history by object id and
+relative depth, variance clipping of the history in YCoCg against the current 3x3 neighbourhood,
+Blackman-Harris reconstruction of the current jittered samples, and an exponential blend with
+luminance weighting. Backends: ``cpu`` (Numba, parallel) and ``cuda`` (``numba.cuda``). See
+``docs/antialias.md``.
+"""
+
+from harness import FilterSpec, hookimpl
+
+from .filter import BACKENDS, TAA
+from .params import DECLARED
+
+VERSION = "1.0"
+
+
+@hookimpl
+def register_filters():
+    return [
+        FilterSpec(
+            name="taa",
+            version=VERSION,
+            factory=TAA,
+            requires={"color", "depth", "object_id", "motion"},
+            temporal=True,
+            backends=BACKENDS,
+            params=DECLARED,
+            presets={"no-clipping": {"clipping": "none"}, "karis-aabb": {"clipping": "minmax"},
+                     "plain": {"luminance_weighting": False, "reconstruct": False, "history_filter": "bilinear"}},
+            tasks={"antialias"},
+            description="temporal anti-aliasing: reprojection, Catmull-Rom history, YCoCg variance clipping",
+        )
+    ]

@@ -1,0 +1,167 @@
+"""The ``captured`` renderer: serves frames and references stored in a capture folder.
+
+A captured scene (see :func:`open_capture`) is a :class:`harness.Scene` of kind ``"captured"``
+whose ``params`` hold the resolved sidecar, the channels the capture has
+(``params["channels"]``) and a digest of every file it reads, so a changed file changes the
+scene's ``content_hash`` and misses the render cache; ``source`` is the folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+import numpy as np
+
+from harness import CHANNELS, Frame, FrameMeta, Scene, read_size
+
+from .reader import FrameReader
+from .sidecar import Capture, CaptureError, find_sidecar, load_sidecar
+
+#: the scene kind of captured folders
+KIND = "captured"
+
+
+def open_capture(path) -> Scene | None:
+    """The captured scene of a folder (or sidecar file), or None when ``path`` has no sidecar.
+
+    Checks every frame's files up front: each must exist and have the size of frame 0's colour.
+
+    Raises
+    ------
+    CaptureError
+        One line naming the file and the problem.
+    """
+    sidecar = find_sidecar(path)
+    if sidecar is None:
+        return None
+    capture = load_sidecar(sidecar)
+    reader = FrameReader(capture)
+    sources = reader.available(0)
+    reference = capture.reference
+    if reference is not None and not reference.required and not capture.path(reference, 0).is_file():
+        reference = None
+    width, height = read_size(capture.path(capture.sources["color"], 0))
+    files = []
+    for t in range(capture.frames):
+        for source in [*sources.values(), *([reference] if reference else [])]:
+            file = capture.path(source, t)
+            if file in files:
+                continue
+            if not file.is_file():
+                raise CaptureError(f"{file}: missing file for frame {t} (expected by {sidecar.name})")
+            size = _size(file)
+            if size != (width, height):
+                raise CaptureError(
+                    f"{file}: {size[0]}x{size[1]} pixels, but the colour of frame 0 is {width}x{height}"
+                )
+            files.append(file)
+    digest = hashlib.sha256()
+    for file in files:
+        digest.update(str(file.relative_to(capture.folder)).encode())
+        digest.update(hashlib.sha256(file.read_bytes()).digest())
+    params = {
+        "format": "captured",
+        "capture": capture.describe(),
+        "channels": sorted(sources),
+        "references": reference is not None,
+        "tasks": list(capture.tasks),
+        "files_sha256": digest.hexdigest(),
+    }
+    return _scene(capture, params, (width, height))
+
+
+def _size(file) -> tuple[int, int]:
+    try:
+        return read_size(file)
+    except OSError as exc:
+        raise CaptureError(f"{file}: unreadable: {str(exc).removeprefix(f'{file}: ')}") from None
+
+
+def _scene(capture: Capture, params: dict, resolution: tuple) -> Scene:
+    """A Scene of kind "captured" that gives only the channels the capture holds."""
+    return Scene(
+        name=capture.name,
+        kind=KIND,
+        frame_count=capture.frames,
+        resolution=resolution,
+        tags=frozenset(capture.tags) | {"captured"},
+        params=params,
+        source=str(capture.folder),
+        channels=frozenset(params["channels"]),
+    )
+
+
+class CapturedRenderer:
+    """Reads the frames of captured scenes (``open_capture``); makes nothing new.
+
+    The noisy frames carry the samples they were captured with: ``spp`` must match the
+    sidecar's ``spp`` where it states one; ``seed`` is ignored (a capture holds one
+    realisation of the noise). ``render`` returns the asked channels that the capture has
+    (the planner skips filters needing the others, from ``scene.channels``).
+    """
+
+    def settings(self) -> dict:
+        return {}
+
+    def _capture(self, scene) -> Capture:
+        if getattr(scene, "kind", None) != KIND:
+            raise ValueError(f"captured renderer reads captured scenes only; {scene.name!r} is {scene.kind!r}")
+        return load_sidecar(find_sidecar(scene.source))
+
+    def _check_resolution(self, scene, resolution) -> None:
+        if resolution is not None and tuple(resolution) != tuple(scene.resolution):
+            raise ValueError(
+                f"captured scene {scene.name!r} is {scene.resolution[0]}x{scene.resolution[1]}; "
+                f"it cannot be served at {resolution[0]}x{resolution[1]} (run it at its own resolution)"
+            )
+
+    def _index(self, capture: Capture, frame_index: int) -> None:
+        if not 0 <= frame_index < capture.frames:
+            raise ValueError(f"captured scene {capture.name!r} has frames 0..{capture.frames - 1}, not {frame_index}")
+
+    def render(
+        self, scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(), resolution=None
+    ) -> Frame:
+        """The captured frame ``frame_index`` with the asked ``channels`` that the capture has (and ``color``)."""
+        capture = self._capture(scene)
+        self._check_resolution(scene, resolution)
+        self._index(capture, frame_index)
+        if capture.spp is not None and spp != capture.spp:
+            raise ValueError(
+                f"captured scene {scene.name!r} holds {capture.spp}-spp frames; asked for {spp} spp "
+                f"(run it with --spp {capture.spp})"
+            )
+        have = set(scene.params["channels"])
+        wanted = (set(channels) & have) | {"color"}
+        sources = {c: capture.sources[c] for c in CHANNELS if c in wanted}
+        arrays = FrameReader(capture).read(frame_index, sources)
+        meta = self._meta(capture, scene, frame_index, arrays["color"].shape)
+        return Frame(arrays, meta, owner="renderer 'captured'")
+
+    def reference(self, scene, frame_index: int, *, spp: int = 0, seed: int = 0, resolution=None) -> np.ndarray:
+        """The captured reference of ``frame_index`` (``spp`` and ``seed`` are ignored)."""
+        capture = self._capture(scene)
+        self._check_resolution(scene, resolution)
+        self._index(capture, frame_index)
+        if not scene.params["references"]:
+            raise ValueError(f"captured scene {scene.name!r} has no references (no 'reference' in its sidecar)")
+        ref = FrameReader(capture).reference(frame_index)
+        want = (scene.resolution[1], scene.resolution[0], 3)
+        if ref.shape != want:
+            raise CaptureError(
+                f"{capture.path(capture.reference, frame_index)}: reference is {ref.shape[1]}x{ref.shape[0]}, "
+                f"the frames are {want[1]}x{want[0]}"
+            )
+        return ref
+
+    @staticmethod
+    def _meta(capture: Capture, scene, frame_index: int, shape) -> FrameMeta:
+        """The frame's metadata: the sidecar's entry when it has one, else defaults."""
+        entry = dict(capture.frame_meta[frame_index]) if capture.frame_meta else {}
+        entry.pop("view", None)
+        entry.setdefault("index", frame_index)
+        entry.setdefault("scene", scene.name)
+        entry.setdefault("camera_cut", frame_index == 0)
+        if capture.spp is not None:
+            entry.setdefault("extra", {"samples": capture.spp * shape[0] * shape[1]})
+        return FrameMeta.from_dict(entry)

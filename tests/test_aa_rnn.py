@@ -1,0 +1,198 @@
+"""The ``aa_rnn`` filter: inference equals the training graph, reproducible training, training data
+kept apart from the benchmark scenes, architecture guarantees, weights validation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from harness import Frame, FrameMeta, load_plugins
+from plugins.filters.aa_rnn import data as D
+from plugins.filters.aa_rnn.network import AARNN, inverse_tonemap, prepare, unroll, warp
+from plugins.filters.aa_rnn.train import QUICK, scene_seeds, train
+from plugins.filters.aa_rnn.trainscenes import PREFIX, make_scene
+from plugins.filters.aa_rnn.weights import (
+    DEFAULT_LAYERS,
+    WeightsError,
+    load_weights,
+    model_arrays,
+    save_weights,
+    shipped_weights,
+)
+
+
+@pytest.fixture(scope="module")
+def registry():
+    return load_plugins()
+
+
+def _random_model(layers: int, seed: int) -> AARNN:
+    torch.manual_seed(seed)
+    model = AARNN(layers)
+    with torch.no_grad():
+        for conv in list(model.body) + [model.head]:
+            conv.weight.normal_(0.0, 0.08)
+    return model
+
+
+def _frames(count=4, h=14, w=18, seed=0, color=None, flat=False):
+    rng = np.random.default_rng(seed)
+    frames = []
+    for t in range(count):
+        depth = rng.uniform(1.0, 4.0, (h, w)).astype(np.float32)
+        depth[:3, :5] = np.inf
+        normal = rng.normal(0.0, 1.0, (h, w, 3)).astype(np.float32)
+        normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+        normal[:3, :5] = 0.0
+        c = rng.exponential(0.6, (h, w, 3)).astype(np.float32) if color is None else np.broadcast_to(
+            np.float32(color), (h, w, 3)).copy()
+        if flat:
+            depth[...] = 2.0
+            normal[...] = (0.0, 0.0, 1.0)
+        motion = rng.normal(0.0, 1.5, (h, w, 2)).astype(np.float32)
+        jitter = (float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-0.5, 0.5)))
+        frames.append(Frame({"color": c, "normal": normal, "depth": depth, "motion": motion},
+                            FrameMeta(index=t, jitter=jitter, camera_cut=t == 0)))
+    return frames
+
+
+def _tensor(a):
+    a = np.asarray(a, np.float32)
+    return torch.from_numpy(np.array(a.reshape(a.shape[0], a.shape[1], -1).transpose(2, 0, 1)))[None]
+
+
+def _prepared(frames):
+    return [prepare(_tensor(f["color"]), _tensor(f["normal"]), _tensor(f["depth"]), _tensor(f["motion"]),
+                    torch.tensor([f.meta.jitter], dtype=torch.float32)) for f in frames]
+
+
+def _weights_file(tmp_path, model, name="w.npz"):
+    return save_weights(model_arrays(model), {"seed": -1}, tmp_path / name)
+
+
+def test_inference_equals_the_training_graph(registry, tmp_path):
+    model = _random_model(3, seed=1)
+    path = _weights_file(tmp_path, model)
+    filt = registry.get("filter", "aa_rnn").factory(backend="cpu", layers=3, weights=str(path))
+    frames = _frames(5)
+    outs = [filt(f) for f in frames]
+    model.train()
+    graph = unroll(model, _prepared(frames))  # gradients on: the graph back-propagation runs through
+    assert graph[-1].requires_grad
+    for out, u in zip(outs, graph):
+        # compared in the network's tone-mapped domain (x / (1 + x)), where float32 rounding is uniform
+        np.testing.assert_allclose(out / (1.0 + out), u[0].permute(1, 2, 0).detach().numpy(), atol=2e-6)
+        expected = inverse_tonemap(u)[0].permute(1, 2, 0).detach().numpy()
+        np.testing.assert_allclose(out, expected, rtol=1e-3)
+    assert not np.allclose(outs[-1], frames[-1]["color"], atol=1e-3), "the network changes the image"
+
+
+def test_same_seed_gives_the_same_weights_and_another_seed_others(tmp_path):
+    a = train(seed=3, output=tmp_path / "a.npz", quick=True)
+    b = train(seed=3, output=tmp_path / "b.npz", quick=True)
+    c = train(seed=4, output=tmp_path / "c.npz", quick=True)
+    (wa, ma), (wb, mb), mc = load_weights(a), load_weights(b), load_weights(c)[1]
+    assert ma["training_data_sha256"] == mb["training_data_sha256"] != mc["training_data_sha256"]
+    for name in wa:
+        np.testing.assert_array_equal(wa[name], wb[name])
+    assert ma["arrays_sha256"] == mb["arrays_sha256"] != mc["arrays_sha256"]
+    assert ma["config"]["steps"] == QUICK.steps and ma["threads"] == 1
+
+
+def test_training_scenes_are_never_benchmark_scenes(registry):
+    meta = load_weights(shipped_weights(DEFAULT_LAYERS))[1]
+    seeds = sum(meta["scene_seeds"].values(), [])
+    assert seeds == scene_seeds(meta["seed"], meta["config"]["scenes"])
+    assert len(seeds) == meta["config"]["scenes"] and len(set(seeds)) == len(seeds)
+    benchmark = {spec.factory().content_hash(): name for name, spec in registry.scenes.items()
+                 if "antialias" in spec.tasks}
+    assert len(benchmark) == 3
+    frames, resolution = meta["config"]["frames"], tuple(meta["config"]["resolution"])
+    for s in seeds:
+        scene = make_scene(s, frames, resolution)
+        assert scene.name.startswith(PREFIX) and scene.name not in registry.scenes
+        assert scene.content_hash() not in benchmark
+    # the 3:1:1 split: 36 training, 12 validation and 12 test scenes
+    sizes = [len(meta["scene_seeds"][k]) for k in ("train", "validation", "test")]
+    assert sizes == [36, 12, 12]
+
+
+def test_shipped_weights_beat_the_aliased_input_on_held_out_training_scenes():
+    for layers in (2, 4, 6):
+        arrays, meta = load_weights(shipped_weights(layers))
+        assert meta["layers"] == layers and len(meta["training_data_sha256"]) == 64
+        test = meta["scores"]["test"]
+        assert test["ssim_network"] > test["ssim_aliased"] + 0.02, (layers, test)
+
+
+def test_augmentation_turns_the_flow_with_the_image():
+    rng = np.random.default_rng(2)
+    s = 12
+    window = rng.uniform(0.0, 1.0, (2, 12, s, s)).astype(np.float32)
+    window[1, 7] = rng.integers(-3, 4, (s, s))  # integer flows: bilinear warps are exact lookups
+    window[1, 8] = rng.integers(-3, 4, (s, s))
+
+    def image_only(image, rotations, flip):
+        padded = np.zeros((1, 12, s, s), np.float32)
+        padded[0, 0:3] = image
+        return D.augment(padded, rotations, flip)[0, 0:3]
+
+    warped = warp(torch.from_numpy(window[0:1, 0:3]), torch.from_numpy(window[1:2, 7:9]),
+                  torch.from_numpy(window[1:2, 0:3])).numpy()[0]
+    for rotations in range(4):
+        for flip in (False, True):
+            aug = D.augment(window, rotations, flip)
+            warped_aug = warp(torch.from_numpy(aug[0:1, 0:3]), torch.from_numpy(aug[1:2, 7:9]),
+                              torch.from_numpy(aug[1:2, 0:3])).numpy()[0]
+            np.testing.assert_allclose(warped_aug, image_only(warped, rotations, flip), atol=1e-6)
+
+
+@pytest.mark.parametrize("layers", [1, 3])
+def test_any_weights_keep_constant_images_constant_and_black_black(tmp_path, registry, layers):
+    path = _weights_file(tmp_path, _random_model(layers, seed=layers))
+    for color in (0.0, 0.7, 3.0):
+        filt = registry.get("filter", "aa_rnn").factory(layers=layers, weights=str(path))
+        for f in _frames(4, color=color, flat=True):  # constant normals and depth as well
+            out = filt(f)
+            assert np.abs(out - np.float32(color)).max() <= 1e-5 * max(1.0, color)
+            if color == 0.0:
+                assert (out == 0.0).all()
+
+
+def test_black_stays_black_over_any_geometry(registry, tmp_path):
+    path = _weights_file(tmp_path, _random_model(2, seed=9))
+    filt = registry.get("filter", "aa_rnn").factory(layers=2, weights=str(path))
+    for f in _frames(3, color=0.0):
+        assert (filt(f) == 0.0).all()
+
+
+def test_weights_files_are_validated(tmp_path, registry):
+    path = _weights_file(tmp_path, _random_model(2, seed=0))
+    with pytest.raises(ValueError, match="layers"):
+        registry.get("filter", "aa_rnn").factory(layers=3, weights=str(path))
+    with np.load(path) as data:
+        stored = {k: np.array(data[k]) for k in data.files}
+    stored["head"] = stored["head"] * 2.0
+    np.savez(tmp_path / "tampered.npz", **stored)
+    with pytest.raises(WeightsError, match="checksum"):
+        load_weights(tmp_path / "tampered.npz")
+    meta = json.loads(str(stored["meta"]))
+    meta["format_version"] = 99
+    stored["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "future.npz", **stored)
+    with pytest.raises(WeightsError, match="format version"):
+        load_weights(tmp_path / "future.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(WeightsError, match="corrupted"):
+        load_weights(tmp_path / "junk.npz")
+    with pytest.raises(WeightsError, match="not found"):
+        load_weights(tmp_path / "missing.npz")
+
+
+def test_spec_declares_the_task_and_the_trainer(registry):
+    spec = registry.get("filter", "aa_rnn")
+    assert spec.tasks == {"antialias"} and spec.temporal and spec.trainer is not None
+    assert {"color", "normal", "depth", "motion"} <= spec.requires

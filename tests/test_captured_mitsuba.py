@@ -1,0 +1,76 @@
+"""An outside render scored: Mitsuba 3 captures ../shared/scenes/living-room, the harness ingests it.
+
+Needs the ``capture`` extra (mitsuba) and the third-party scene folder; skips otherwise. The
+rendered files go to a temporary folder only (they derive from a third-party scene).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import warnings
+
+import numpy as np
+import pytest
+
+from harness import load_plugins
+from tests.conftest import ROOT
+
+SCENE = ROOT.parent / "shared" / "scenes" / "living-room"
+
+
+def _load(path):
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def capture(tmp_path_factory):
+    pytest.importorskip("mitsuba", reason="mitsuba is not installed (pip install 'denoise-harness[capture]')")
+    if not (SCENE / "scene.xml").is_file():
+        pytest.skip(f"third-party scene folder {SCENE} is absent")
+    script = _load(ROOT / "examples" / "capture" / "mitsuba_capture.py")
+    out = tmp_path_factory.mktemp("living-room-capture")
+    script.main([str(SCENE), str(out), "--width", "32", "--height", "18", "--frames", "2",
+                 "--reference-spp", "8", "--variance-renders", "3", "--max-depth", "4"])
+    return out
+
+
+def test_mitsuba_capture_is_ingested_with_harness_conventions(capture):
+    registry = load_plugins()
+    scene = registry.open_scene(capture)
+    assert scene.kind == "captured" and scene.name == "living-room-mitsuba3"
+    assert scene.resolution == (32, 18) and scene.frame_count == 2
+    assert scene.params["channels"] == ["albedo", "color", "depth", "motion", "normal", "object_id", "position",
+                                        "variance"]
+    renderer = registry.get("renderer", "captured").factory()
+    frame = renderer.render(scene, 1, spp=1, channels=set(scene.params["channels"]))
+    ref = renderer.reference(scene, 1)
+    assert ref.shape == (18, 32, 3) and np.isfinite(ref).all() and ref.mean() > 0
+    hit = frame["object_id"] >= 0
+    assert hit.mean() > 0.8  # an indoor view
+    assert (frame["motion"] == 0).all()  # static camera: zero motion, by construction
+    depth = frame["depth"]
+    # Mitsuba's background depth 0 became +inf; hits have positive view-space depth
+    assert (depth[np.isfinite(depth)] > 0).all()
+    normal_length = np.linalg.norm(frame["normal"], axis=-1)
+    np.testing.assert_allclose(normal_length[depth < np.inf], 1.0, atol=1e-3)
+    # the converted depth agrees with the position AOV: z = (position - eye) . forward
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        view = registry.get("scene", "living-room").factory().camera
+    eye = view.eye(0)
+    forward = view.basis(0)[2]
+    z = (frame["position"].astype(np.float64) - eye) @ forward
+    both = np.isfinite(depth) & hit
+    np.testing.assert_allclose(depth[both], z[both], rtol=0.05)
+    assert (frame["variance"] >= 0).all()
+
+
+def test_filters_run_on_the_mitsuba_capture(capture):
+    score = _load(ROOT / "benchmarks" / "score_capture.py").score
+    table, skipped = score(capture, ["passthrough", "eaw", "svgf"])
+    assert set(table.index) == {"passthrough", "eaw", "svgf"} and not skipped
+    assert np.isfinite(table.to_numpy()).all()
+    assert (table["ssim"] <= 1.0).all()
