@@ -517,6 +517,8 @@ def test_fuzzing_finds_shrinks_saves_and_replays_a_third_party_failure(tmp_path,
     (["--filters", "nope"], "no filter named 'nope'"),
     (["--filters", "gaussian", "--param", "gaussian.sigma=-1"], "filter 'gaussian': parameter 'sigma'"),
     (["--filters", "gaussian", "--param", "eaw.iterations=2"], "parameters or a preset for filter 'eaw'"),
+    (["--filters", "gaussian", "--workers", "2"], "--scheduler and --workers need --executor dask"),
+    (["--cases", "shape-4K"], "did you mean shape-4k"),
 ])
 def test_bad_stress_options_are_one_line_errors_with_exit_2(args, message, tmp_path, capsys):
     try:

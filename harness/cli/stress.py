@@ -3,17 +3,20 @@
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 
 import pandas as pd
 
-from harness.executors import make_executor
-from harness.executors.base import PluginOptions
+from harness.executors.base import Executor
 from harness.manifest import read_manifest
 from harness.results import format_table, to_markdown
 
 
-def cmd_stress(registry, args) -> int:
-    """Run filters through the stress battery, fuzz them, or replay a reproducer; print the table."""
+def run_stress_command(registry, args, make_executor: Callable[[], Executor]) -> int:
+    """Run filters through the stress battery, fuzz them, or replay a reproducer; print the table.
+
+    ``make_executor()`` builds the executor of ``--executor`` once every option is checked.
+    """
     from harness.stress import load_reproducer, make_targets, run_stress, select_cases
 
     filters, backends, params = args.filters, args.backend, {}
@@ -32,6 +35,7 @@ def cmd_stress(registry, args) -> int:
         except ImportError:
             raise ValueError("--fuzz needs hypothesis (pip install 'denoise-harness[stress]')") from None
     targets = make_targets(registry, filters, backends, params, dict(args.preset))
+    executor = make_executor()
     what = [f"{len(cases)} case(s)"] if battery else []
     what += [f"fuzzing {args.fuzz} examples (seed {args.seed})"] if args.fuzz else []
     what += [f"replay of {args.replay}"] if args.replay is not None else []
@@ -40,8 +44,6 @@ def cmd_stress(registry, args) -> int:
     settings = {"filters": sorted({t.name for t in targets}), "backends": list(backends), "params": params,
                 "presets": dict(args.preset), "cases": [c.name for c in cases], "fuzz": args.fuzz or 0,
                 "seed": args.seed, "replay": str(args.replay) if args.replay else None, "timeout_s": args.timeout}
-    executor = make_executor(args.executor, registry=registry, plugins=PluginOptions(disable=list(args.disable)),
-                             timeout=args.timeout)
     bar = not args.quiet and sys.stderr.isatty()
     with executor:
         outcome = run_stress(registry, executor, args.out, targets, cases=cases, fuzz_examples=args.fuzz or 0,
