@@ -535,7 +535,7 @@ def test_a_file_that_is_not_a_reproducer_is_a_one_line_error(tmp_path, capsys):
     bad.write_text("not a zip")
     assert main(["stress", "--replay", str(bad), "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
-    assert "is not a stress reproducer" in err and len(err.strip().splitlines()) == 1
+    assert "bad.npz is not a stress reproducer: not an .npz archive" in err and len(err.strip().splitlines()) == 1
 
 
 def test_reproducers_store_frames_bit_for_bit(tmp_path):
