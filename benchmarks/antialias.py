@@ -5,6 +5,7 @@ Calls the ``raster`` renderer, the AA filters and the harness's metric plugins (
 
     python benchmarks/antialias.py quality  [--reference-spp 64] [--out FILE.json]
     python benchmarks/antialias.py timing   [--resolutions 1280x720,1920x1080] [--frames 6]
+    python benchmarks/antialias.py depth    [--resolution 1280x720] [--layers 1,2,4,6]
     python benchmarks/antialias.py pictures [--scene aa-fence] [--frame 20] [--out-dir docs/images]
 
 ``quality`` renders every scene of the ``antialias`` task (jittered input, SSAA references;
@@ -13,7 +14,8 @@ sequence from a camera cut, and prints per-scene and mean scores as Markdown tab
 ghosting measure: the error in the pixels that showed a moving object during the last 4 frames
 but show something else now (where a trail would be). ``timing`` renders a few frames of
 ``aa-fence`` at each resolution and times every filter on them, the filters alternating frame
-by frame; each filter's first call (compilation, warm-up) is reported apart.
+by frame; each filter's first call (compilation, warm-up) is reported apart. ``depth`` times the
+network's step at each depth (random weights: the cost does not depend on their values).
 """
 
 from __future__ import annotations
@@ -41,9 +43,7 @@ CONFIGS = [
     ("taa, no clipping", "taa", {"clipping": "none"}),
     ("taa, min/max box", "taa", {"clipping": "minmax"}),
     ("taa, no reconstruction", "taa", {"reconstruct": False}),
-    ("aa_rnn L2", "aa_rnn", {"layers": 2}),
-    ("aa_rnn L4", "aa_rnn", {"layers": 4}),
-    ("aa_rnn L6", "aa_rnn", {"layers": 6}),
+    ("aa_rnn", "aa_rnn", {}),
 ]
 TRAIL_FRAMES = 4
 
@@ -201,6 +201,59 @@ def timing(args) -> dict:
     return out
 
 
+def depth(args) -> dict:
+    """Per-frame time of the ``aa_rnn`` step against its depth, in one process, depths alternating.
+
+    The step's cost does not depend on the weights' values, so each depth runs with random (He)
+    weights: this times the depths that have no shipped weights as well.
+    """
+    import numba
+    import torch
+
+    from plugins.filters.aa_rnn.network import AARNN, prepare
+
+    w, h = (int(v) for v in args.resolution.split("x"))
+    torch.manual_seed(0)
+    torch.set_num_threads(numba.get_num_threads())
+    rng = np.random.default_rng(0)
+    depth_map = rng.uniform(1.0, 10.0, (1, 1, h, w)).astype(np.float32)
+    normal = rng.normal(size=(1, 3, h, w)).astype(np.float32)
+    with torch.inference_mode():
+        inputs = prepare(torch.from_numpy(rng.exponential(0.5, (1, 3, h, w)).astype(np.float32)),
+                         torch.from_numpy(normal), torch.from_numpy(depth_map),
+                         torch.from_numpy(rng.normal(0.0, 1.0, (1, 2, h, w)).astype(np.float32)),
+                         torch.tensor([[0.25, -0.25]]))
+    models = {}
+    for layers in args.layers:
+        model = AARNN(layers).eval().to(memory_format=torch.channels_last)
+        model.memory_format = torch.channels_last
+        models[layers] = model
+    state = {layers: None for layers in models}
+    wall = {layers: [] for layers in models}
+    cpu = {layers: [] for layers in models}
+    with torch.inference_mode():
+        for t in range(args.frames):
+            order = list(models) if t % 2 == 0 else list(models)[::-1]
+            for layers in order:
+                c0, w0 = time.process_time_ns(), time.perf_counter_ns()
+                state[layers] = models[layers].step(inputs, state[layers])
+                w1, c1 = time.perf_counter_ns(), time.process_time_ns()
+                if t:  # the first step (allocation, warm-up) is not counted
+                    wall[layers].append((w1 - w0) / 1e6)
+                    cpu[layers].append((c1 - c0) / 1e6)
+    table = {layers: {"median_ms": float(np.median(wall[layers])), "min_ms": float(np.min(wall[layers])),
+                      "max_ms": float(np.max(wall[layers])), "cpu_ms": float(np.median(cpu[layers]))}
+             for layers in models}
+    print(f"\naa_rnn step at {w}x{h}, {args.frames - 1} timed frames per depth (alternating), "
+          f"{torch.get_num_threads()} threads\n")
+    print("| hidden layers | ms median (min-max) | CPU ms median |")
+    print("|---|---|---|")
+    for layers, row in table.items():
+        print(f"| {layers} | {row['median_ms']:.1f} ({row['min_ms']:.1f}-{row['max_ms']:.1f}) | {row['cpu_ms']:.1f} |")
+    return {"resolution": args.resolution, "threads": torch.get_num_threads(), "machine": _machine(),
+            "layers": {str(k): v for k, v in table.items()}}
+
+
 def pictures(args) -> dict:
     """Aliased, TAA, network and SSAA side by side, with 4x zooms of an edge and a texture crop."""
     registry = load_plugins()
@@ -238,18 +291,23 @@ def main(argv=None) -> None:
     sub = parser.add_subparsers(dest="command", required=True)
     q = sub.add_parser("quality")
     q.add_argument("--reference-spp", type=int, default=64)
-    q.add_argument("--filters", type=lambda s: s.split(","), default=None, help="labels of CONFIGS to run")
+    q.add_argument("--filters", type=lambda s: s.split(";"), default=None, help="CONFIGS labels, ;-separated")
     q.add_argument("--out", default=None)
     t = sub.add_parser("timing")
     t.add_argument("--resolutions", default="1280x720,1920x1080")
     t.add_argument("--frames", type=int, default=6)
     t.add_argument("--scene", default="aa-fence")
-    t.add_argument("--filters", type=lambda s: s.split(","), default=None)
+    t.add_argument("--filters", type=lambda s: s.split(";"), default=None, help="labels of CONFIGS, ';'-separated")
     t.add_argument("--out", default=None)
+    d = sub.add_parser("depth")
+    d.add_argument("--resolution", default="1280x720")
+    d.add_argument("--layers", type=lambda s: [int(v) for v in s.split(",")], default=[1, 2, 4, 6])
+    d.add_argument("--frames", type=int, default=8)
+    d.add_argument("--out", default=None)
     p = sub.add_parser("pictures")
     p.add_argument("--scene", default="aa-fence")
     p.add_argument("--frame", type=int, default=20)
-    p.add_argument("--network", default="aa_rnn L4")
+    p.add_argument("--network", default="aa_rnn")
     p.add_argument("--reference-spp", type=int, default=64)
     p.add_argument("--edge", default="60,150,40", help="y,x,size of the edge crop")
     p.add_argument("--texture", default="20,60,40", help="y,x,size of the texture crop")
@@ -257,7 +315,7 @@ def main(argv=None) -> None:
     p.add_argument("--out-dir", default=str(ROOT / "docs" / "images"))
     p.add_argument("--out", default=None)
     args = parser.parse_args(argv)
-    result = {"quality": quality, "timing": timing, "pictures": pictures}[args.command](args)
+    result = {"quality": quality, "timing": timing, "depth": depth, "pictures": pictures}[args.command](args)
     if getattr(args, "out", None):
         Path(args.out).write_text(json.dumps(result, indent=1))
 

@@ -28,6 +28,15 @@ Usage::
 before/after figures; the output difference of each against the current plugin (max abs
 difference over the image's range) is printed too.
 
+``--memory`` measures, for each selected filter and resolution, the peak extra resident memory
+of the filter's first calls at that size (``svgf``: two frames, so its history buffers are in
+place; the others: one), its kept buffers and its output included, each filter in a fresh
+process (Linux: the peak resident size ``VmHWM`` is reset through ``/proc/self/clear_refs``
+after a compile-only call on a 16x16 frame, and the resident size before the calls is
+subtracted)::
+
+    python benchmarks/bench_eaw_svgf.py --memory --resolution 1280x720,1920x1080,3840x2160
+
 ``--cpu-stages`` makes the filters' ``stage_ms`` process CPU time instead of wall-clock time
 (the plugins' stage clocks are pointed at ``time.process_time``): on a machine shared with
 other work this is the steadier per-stage breakdown; it is meaningful with one thread only.
@@ -37,7 +46,10 @@ from __future__ import annotations
 
 import argparse
 import copy
+import ctypes
+import gc
 import importlib
+import json
 import subprocess
 import sys
 import tempfile
@@ -158,6 +170,51 @@ def build(reg, names, baselines):
     return filters
 
 
+def _status_kib(key: str) -> int:
+    """A ``/proc/self/status`` entry in KiB (``VmRSS:``, ``VmHWM:``)."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(key):
+                return int(line.split()[1])
+    raise KeyError(key)
+
+
+def memory_child(name: str, w: int, h: int, scene_name: str) -> None:
+    """Print the peak extra resident KiB of ``name``'s first calls at ``w`` x ``h`` (JSON)."""
+    reg = load_plugins()
+    renderer = reg.renderers["synthetic"].factory()
+    scene = reg.scenes[scene_name].factory()
+    filt = build(reg, [name], {})[name]
+    filt(renderer.render(scene, 0, spp=1, seed=0, channels=CHANNELS, resolution=(16, 16)))  # compile
+    count = 2 if name == "svgf" else 1
+    frames = [renderer.render(scene, k, spp=1, seed=0, channels=CHANNELS, resolution=(w, h))
+              for k in range(count)]
+    gc.collect()
+    ctypes.CDLL("libc.so.6").malloc_trim(0)  # freed heap pages would hide the filter's own
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")  # the peak resident size (VmHWM) starts again from the current one
+    before = _status_kib("VmRSS:")
+    for frame in frames:
+        filt(frame)
+    print(json.dumps({"kib": _status_kib("VmHWM:") - before}))
+
+
+def memory_table(names, resolutions, scene_name: str) -> None:
+    """One fresh process per filter and resolution (see ``--memory``); a Markdown table."""
+    print("\n| filter | resolution | peak extra memory | bytes per pixel | RGB float32 frames |")
+    print("|---|---|---|---|---|")
+    for w, h in resolutions:
+        for name in names:
+            proc = subprocess.run([sys.executable, __file__, "--memory-child", name, "--resolution", f"{w}x{h}",
+                                   "--scene", scene_name], capture_output=True, text=True)
+            if proc.returncode:
+                print(f"| {name} | {w}x{h} | error: {proc.stderr.strip()[-200:]} | | |")
+                continue
+            kib = json.loads(proc.stdout.strip().splitlines()[-1])["kib"]
+            per_pixel = kib * 1024 / (w * h)
+            print(f"| {name} | {w}x{h} | {kib / 1024:.0f} MiB | {per_pixel:.0f} | {per_pixel / 12:.1f} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--resolution", default="1280x720", help="comma-separated WxH list")
@@ -169,7 +226,17 @@ def main() -> None:
     ap.add_argument("--warm", type=int, default=6)
     ap.add_argument("--baseline", default="", help="git revision whose plugins are timed too")
     ap.add_argument("--cpu-stages", action="store_true", help="stage_ms in process CPU time (one thread)")
+    ap.add_argument("--memory", action="store_true", help="peak extra memory per filter, fresh processes")
+    ap.add_argument("--memory-child", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    resolutions = [tuple(int(v) for v in res.split("x")) for res in args.resolution.split(",")]
+    if args.memory_child:
+        memory_child(args.memory_child, *resolutions[0], args.scene)
+        return
+    if args.memory:
+        memory_table([n for n in args.filters.split(",") if n and not n.startswith("floor")], resolutions,
+                     args.scene)
+        return
     reg = load_plugins()
     renderer = reg.renderers["synthetic"].factory()
     scene = reg.scenes[args.scene].factory()
@@ -185,8 +252,7 @@ def main() -> None:
             except ImportError:
                 pass
     threads = [int(t) for t in args.threads.split(",") if t] or [get_num_threads()]
-    for res in args.resolution.split(","):
-        w, h = (int(v) for v in res.split("x"))
+    for w, h in resolutions:
         count = args.warm + 1 if args.steady else 2
         frames = [renderer.render(scene, k, spp=1, seed=0, channels=CHANNELS, resolution=(w, h))
                   for k in range(count)]
@@ -229,7 +295,8 @@ def main() -> None:
             for name in filters:
                 print(f"{name:{width}s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
                       f"{min(cpu[name]):9.1f} {np.median(cpu[name]):9.1f}")
-            pairs = [("eaw", "opencv_jbf"), ("eaw", "floor_eaw"), ("svgf", "oidn"), ("svgf", "floor_svgf"),
+            # (a, b): b's time over a's, round by round ("eaw / floor_eaw" is x_of_floor)
+            pairs = [("eaw", "opencv_jbf"), ("floor_eaw", "eaw"), ("svgf", "oidn"), ("floor_svgf", "svgf"),
                      ("svgf", "eaw")] + [(n.split("@")[0], n) for n in baselines]
             for a, b in pairs:
                 if a in filters and b in filters:

@@ -14,7 +14,7 @@ from harness.buffers import (
 )
 from harness.exr import ExrError, read_channels, read_size, write_capture, write_channels, write_exr
 from harness.hookspecs import hookimpl
-from harness.images import encode_srgb, write_png
+from harness.images import display_variance, encode_srgb, write_png
 from harness.numba_cache import configure_numba_cache
 from harness.params import Param
 from harness.plugins import PluginConflictError, Registry, load_plugins
@@ -78,6 +78,7 @@ __all__ = [
     "available_backends",
     "cuda_available",
     "cuda_simulated",
+    "display_variance",
     "encode_srgb",
     "expected_shape",
     "hookimpl",

@@ -8,9 +8,35 @@ import numpy as np
 
 
 def encode_srgb(image: np.ndarray) -> np.ndarray:
-    """Linear radiance clamped to [0, 1] and sRGB-encoded, float64 (the display mapping of SSIM and FLIP)."""
+    """Linear radiance clamped to [0, 1] and sRGB-encoded, float64: the harness's display mapping.
+
+    Exposure 1 (no scaling before the clamp), no tone curve besides the clamp: the mapping of
+    SSIM, FLIP and the ``display_*`` error metrics, and of the pictures a run writes.
+    """
     x = np.clip(np.nan_to_num(np.asarray(image, np.float64)), 0.0, 1.0)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def srgb_slope(image: np.ndarray) -> np.ndarray:
+    """Derivative of :func:`encode_srgb` with respect to linear radiance, elementwise (float64).
+
+    12.92 on the linear toe, ``1.055 / 2.4 * x^(1/2.4 - 1)`` above it, and 0 outside [0, 1]
+    where the display mapping clamps.
+    """
+    x = np.nan_to_num(np.asarray(image, np.float64))
+    inside = (x >= 0.0) & (x <= 1.0)
+    toe = x <= 0.0031308
+    curve = 1.055 / 2.4 * np.power(np.maximum(x, 0.0031308), 1.0 / 2.4 - 1.0)
+    return np.where(inside, np.where(toe, 12.92, curve), 0.0)
+
+
+def display_variance(reference: np.ndarray, variance: np.ndarray) -> np.ndarray:
+    """The variance of a reference's displayed values, from its linear variance (delta method).
+
+    ``Var[encode_srgb(r)] ~ encode_srgb'(r)^2 Var[r]``: first order in the reference's standard
+    error, which the profiles keep at a few percent; float64, same shape.
+    """
+    return srgb_slope(reference) ** 2 * np.asarray(variance, np.float64)
 
 
 def tonemap(image: np.ndarray, exposure: float = 1.0) -> np.ndarray:

@@ -13,6 +13,11 @@ timed call includes the extra samples it asks for (a fresh sampler per call).
 
 Fault handling: a filter that fails to build, raises (``sys.exit`` included), returns a wrong
 shape or dtype, or non-finite values gives an ``error`` row with a short message.
+
+Metrics receive what their spec ``accepts``: the reference's variance of the mean (for the
+bias correction) and the mask of scored pixels (emitters left out unless the job includes
+them). A job whose ``timing`` names real resolutions also times its filter on the group's
+frames of those sizes (:func:`time_real_resolutions`), after its quality frames.
 """
 
 from __future__ import annotations
@@ -29,9 +34,11 @@ import numpy as np
 
 from harness.buffers import Frame, check_filter_output
 from harness.errors import short_error
+from harness.images import display_variance
 from harness.machine import machine_label
 from harness.plan import Job, MetricPlan
-from harness.rows import Row
+from harness.references import noise_floor
+from harness.rows import Row, timing_column
 
 
 @dataclass
@@ -53,6 +60,13 @@ class GroupInputs:
         The scene, for adaptive filters (their sampler renders more samples of it).
     renderer_settings : dict
         Factory settings of the group's renderer (for the sampler).
+    reference_variances : list of ndarray or None
+        Each reference's per-pixel variance of the mean (None where unknown).
+    reference_quality : list of (int, float)
+        Each reference's samples per pixel and median relative standard error.
+    timing_frames : dict
+        (width, height) -> frames at that real resolution, for jobs that time there
+        (:func:`harness.timing.timing_frames`).
     """
 
     frames: list
@@ -62,6 +76,9 @@ class GroupInputs:
     channels: frozenset = frozenset()
     scene: Any = None
     renderer_settings: dict = field(default_factory=dict)
+    reference_variances: list = field(default_factory=list)
+    reference_quality: list = field(default_factory=list)
+    timing_frames: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -115,9 +132,10 @@ def run_job(
         return JobResult([_row(job, inputs, -1, first, "error", f"filter could not be built: {_why(exc)}")])
     visible = spec.requires | spec.optional
     use_sampler = spec.adaptive and renderer is not None
-    frame_metrics = {name: registry.get("metric", name).factory() for name in metrics.frame}
+    frame_metrics = {name: registry.get("metric", name) for name in metrics.frame}
+    frame_metrics = {name: (m, m.factory()) for name, m in frame_metrics.items()}
     skipped_notes = [f"{name} skipped: {reason}" for name, reason in metrics.skipped.items()]
-    rows, outputs, kept = [], [], {}
+    rows, outputs, kept, masks = [], [], {}, []
     for t, frame in enumerate(inputs.frames):
         shown = frame.subset(visible & frame.channels)
         timing: dict = {}
@@ -134,24 +152,111 @@ def run_job(
             notes.append(f"{inputs.repaired[t]} non-finite input values repaired")
         scores = {}
         reference = inputs.references[t]
+        variance = _variance(inputs, t)
+        mask = emitter_mask(frame) if job.emitters == "exclude" else None
+        masks.append(mask)
+        if mask is not None and not mask.any():
+            notes.append("every pixel sees an emitter: nothing to score with emitters excluded")
         if reference is not None:
-            for name, metric in frame_metrics.items():
+            for name, (mspec, metric) in frame_metrics.items():
                 try:
-                    scores[name] = float(metric(out, reference))
+                    scores[name] = float(metric(out, reference, **_metric_inputs(mspec, variance, mask)))
                 except Exception as exc:
                     notes.append(f"{name} failed: {short_error(exc, 120)}")
         outputs.append(out)
         if keep_outputs == "all" or (keep_outputs == "first" and t == 0):
             kept[t] = out
-        rows.append(_row(job, inputs, t, frame, "ok", "", scores=scores, timing=timing, samples=samples,
-                         notes="; ".join(notes)))
+        row = _row(job, inputs, t, frame, "ok", "", scores=scores, timing=timing, samples=samples,
+                   notes="; ".join(notes))
+        if reference is not None:
+            row.reference_noise = noise_floor(variance, mask)
+            display = None if variance is None else display_variance(reference, variance)
+            row.reference_noise_display = noise_floor(display, mask)
+        rows.append(row)
         tick(1)
     for name in metrics.sequence:
+        mspec = registry.get("metric", name)
+        extra = {}
+        if "reference_variance" in mspec.accepts:
+            extra["reference_variance"] = [_variance(inputs, t) for t in range(n)]
+        if "mask" in mspec.accepts:
+            extra["mask"] = masks
         try:
-            rows[-1].metrics[name] = float(registry.get("metric", name).factory()(outputs, inputs.references))
+            rows[-1].metrics[name] = float(mspec.factory()(outputs, inputs.references, **extra))
         except Exception as exc:
             rows[-1].notes = "; ".join(filter(None, [rows[-1].notes, f"{name} failed: {short_error(exc, 120)}"]))
+    if job.timing and inputs.timing_frames:
+        times, failures = time_real_resolutions(spec, job, inputs, renderer)
+        for row in rows:
+            for (w, h), ms in times.items():
+                setattr(row, timing_column(w, h), ms)
+        if failures:
+            rows[-1].notes = "; ".join(filter(None, [rows[-1].notes, *failures]))
     return JobResult(rows, kept)
+
+
+def emitter_mask(frame: Frame) -> np.ndarray | None:
+    """Pixels to score: True where the first hit is not an emitter (None without ``emission``)."""
+    if "emission" not in frame:
+        return None
+    return ~(np.asarray(frame["emission"]) > 0.0).any(axis=-1)
+
+
+def _variance(inputs: GroupInputs, t: int):
+    variances = inputs.reference_variances
+    return variances[t] if t < len(variances) else None
+
+
+def _metric_inputs(mspec, variance, mask) -> dict:
+    extra = {}
+    if "reference_variance" in mspec.accepts:
+        extra["reference_variance"] = variance
+    if "mask" in mspec.accepts:
+        extra["mask"] = mask
+    return extra
+
+
+def time_real_resolutions(spec, job: Job, inputs: GroupInputs, renderer=None) -> tuple[dict, list]:
+    """Per-frame time of the job's filter on the group's frames at real resolutions.
+
+    For each (width, height) of ``inputs.timing_frames``: a fresh filter is built and called
+    once on the first frame (compilation and, for a temporal filter, history), then timed on
+    the last one with the timing protocol (:func:`time_frame`, ``job.repeats`` calls; an
+    adaptive filter renders its extra samples at that resolution inside the timed calls).
+
+    Returns
+    -------
+    times : dict
+        (width, height) -> median milliseconds per frame.
+    failures : list of str
+        Notes for the resolutions that failed.
+    """
+    times, failures = {}, []
+    visible = spec.requires | spec.optional
+    for (w, h), frames in inputs.timing_frames.items():
+        try:
+            filt = spec.factory(backend=job.backend, **job.param_dict)
+            filt.reset()
+            for k, frame in enumerate(frames):
+                make = None
+                if spec.adaptive and renderer is not None and inputs.scene is not None:
+                    make = _sampler_at(renderer, inputs, job, frame.meta.index, (w, h))
+                shown = frame.subset(visible & frame.channels)
+                repeats = job.repeats if k == len(frames) - 1 else 1
+                filt, _, timing, _ = time_frame(filt, spec, job.backend, shown, False, repeats, make,
+                                                check=f"filter {job.filter!r}")
+            times[(w, h)] = timing["ms_median"]
+        except (Exception, SystemExit) as exc:
+            failures.append(f"timing at {w}x{h} failed: {_why(exc)}")
+    return times, failures
+
+
+def _sampler_at(renderer, inputs: GroupInputs, job: Job, t: int, resolution):
+    def make():
+        return renderer.sampler(inputs.scene, t, spp=job.spp, seed=job.seed, channels=inputs.channels,
+                                resolution=resolution)
+
+    return make
 
 
 def time_frame(filt, spec, backend: str, frame: Frame, first: bool, repeats: int, sampler_factory=None,
@@ -246,6 +351,7 @@ def _row(job: Job, inputs: GroupInputs, t: int, frame, status: str, message: str
     import numba
 
     timing = timing or {}
+    quality = inputs.reference_quality[t] if 0 <= t < len(inputs.reference_quality) else None
     h, w = (frame.height, frame.width) if frame is not None else (-1, -1)
     if samples == -1 and frame is not None and status == "ok":
         samples = job.spp * h * w
@@ -257,7 +363,8 @@ def _row(job: Job, inputs: GroupInputs, t: int, frame, status: str, message: str
         ms_min=timing.get("ms_min", math.nan), ms_max=timing.get("ms_max", math.nan),
         repeats=timing.get("repeats", 0), stage_ms=timing.get("stage_ms", ""), threads=numba.get_num_threads(),
         machine=machine_label(), nonfinite_repaired=inputs.repaired[t] if 0 <= t < len(inputs.repaired) else 0,
-        reference_spp=job.reference_spp,
+        reference_spp=quality[0] if quality else job.reference_spp,
+        reference_error=quality[1] if quality else math.nan,
         reference_hash=inputs.reference_hashes[t] if 0 <= t < len(inputs.reference_hashes) else "",
         metrics=dict(scores or {}),
     )

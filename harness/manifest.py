@@ -1,7 +1,9 @@
 """The run manifest: what is needed to reproduce and audit a stored results table.
 
 The manifest describes the whole stored table (after ``--resume`` too): the scenes, references
-and seeds are read from the table's rows, the plugins and packages from this process.
+(their hashes, and the samples and median relative standard error each reached) and seeds are
+read from the table's rows, the plugins and packages from this process; the run's settings
+include its profile with the values actually used.
 """
 
 from __future__ import annotations
@@ -89,9 +91,11 @@ def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: di
 
     ran = table[table.status != "skipped"] if len(table) else table
     scenes = {r.scene: r.scene_hash for r in ran.drop_duplicates("scene").itertuples() if r.scene_hash}
-    refs = {}
+    refs, quality = {}, {}
     for r in ran[ran.reference_hash != ""].drop_duplicates(["scene", "renderer", "frame"]).itertuples():
         refs[f"{r.scene}/{r.renderer}/{r.frame}"] = r.reference_hash
+        error = None if pd.isna(r.reference_error) else float(r.reference_error)
+        quality[f"{r.scene}/{r.renderer}/{r.frame}"] = {"spp": int(r.reference_spp), "median_relative_error": error}
     source = provenance()
     return {
         "harness_version": __version__,
@@ -115,6 +119,7 @@ def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: di
         "seeds": sorted(int(s) for s in set(ran.seed)) if len(ran) else [],
         "scenes": scenes,
         "references": refs,
+        "reference_quality": quality,
     }
 
 

@@ -17,11 +17,12 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 from harness.backends import cuda_available, resolve_backend
 from harness.cache import make_key, plain
+from harness.rows import timing_column
 from harness.specs import TASKS
 
 #: renderers preferred for each (scene kind, task) when the user names none
@@ -32,6 +33,7 @@ PREFERRED_RENDERERS = {
     ("captured", "denoise"): ("captured",),
 }
 BACKEND_CHOICES = ("cpu", "cuda", "auto", "all")
+EMITTER_CHOICES = ("exclude", "include")
 
 
 @dataclass(frozen=True)
@@ -63,6 +65,9 @@ class Job:
     repeats: int = 0
     reference_spp: int = 0
     nonfinite: str = "raise"
+    reference_target: float = 0.0  # median relative standard error the reference stops at (0: fixed spp)
+    emitters: str = "exclude"  # emitter pixels in the error metrics: "exclude" or "include"
+    timing: tuple = ()  # (width, height) the filter is also timed at (real resolutions), on this job
 
     @property
     def job_id(self) -> str:
@@ -105,6 +110,8 @@ class Group:
     reference_spp: int
     jobs: list = field(default_factory=list)
     metrics: MetricPlan = field(default_factory=MetricPlan)
+    reference_target: float = 0.0
+    timing: tuple = ()  # real resolutions its jobs are timed at (one group per task carries them)
 
 
 @dataclass
@@ -203,6 +210,11 @@ def make_plan(
     repeats: int = 3,
     reference_spp: int | None = None,
     nonfinite: str = "raise",
+    sampled_reference_spp: int | None = None,
+    reference_target: float = 0.0,
+    emitters: str = "exclude",
+    timing_resolutions: Sequence[tuple] = (),
+    timing_scene: str | None = None,
 ) -> Plan:
     """Build the plan of a run.
 
@@ -230,9 +242,24 @@ def make_plan(
     repeats : int
         Timed calls per frame.
     reference_spp : int, optional
-        Samples per pixel of references (default: each renderer's ``reference_spp``).
+        Samples per pixel of every reference (default: each renderer's ``reference_spp``).
+    sampled_reference_spp : int, optional
+        Samples per pixel of references that are sampled (renderers whose ``reference_spp`` is
+        not 0) where ``reference_spp`` is not given: a profile's value, which leaves analytic
+        references analytic.
     nonfinite : {"raise", "repair"}
         Policy for non-finite renderer output (part of the identity: it changes rows).
+    reference_target : float
+        Median relative standard error at which references stop (0: exactly ``reference_spp``,
+        which is then the cap); see :mod:`harness.references`.
+    emitters : {"exclude", "include"}
+        Whether pixels whose first hit is an emitter count in the metrics that take a mask
+        (excluded through the ``emission`` channel, which is then rendered).
+    timing_resolutions : list of (width, height)
+        Real resolutions every filter configuration is also timed at, once per task, on
+        :func:`timing_group`'s group (see :mod:`harness.timing`).
+    timing_scene : str, optional
+        The scene those timings are taken on, where it serves the task.
 
     Returns
     -------
@@ -247,6 +274,15 @@ def make_plan(
     presets = dict(presets or {})
     check_choices(spp=spp, seeds=seeds, frames=frames, repeats=repeats, reference_spp=reference_spp,
                   backends=backends)
+    if sampled_reference_spp is not None:
+        check_choices(reference_spp=sampled_reference_spp)
+    for width, height in timing_resolutions:
+        timing_column(int(width), int(height))  # raises for a resolution without a column
+    if emitters not in EMITTER_CHOICES:
+        raise ValueError(f"emitters must be one of {EMITTER_CHOICES}, got {emitters!r}")
+    if isinstance(reference_target, bool) or not isinstance(reference_target, (int, float)) or not (
+            0 <= reference_target < 1):
+        raise ValueError(f"reference target must be a number in [0, 1), got {reference_target!r}")
     unknown_tasks = sorted(set(tasks) - set(TASKS))
     if unknown_tasks or not tasks:
         raise ValueError(f"task must be one of {TASKS}, got {list(tasks)}")
@@ -265,7 +301,10 @@ def make_plan(
         "tasks": list(tasks), "renderer": renderer, "backends": list(backends), "spp": list(spp),
         "seeds": list(seeds), "frames": frames, "resolution": store.resolution_override, "repeats": repeats,
         "reference_spp": reference_spp, "nonfinite": nonfinite, "filters": list(filters), "metrics": list(metrics),
+        "sampled_reference_spp": sampled_reference_spp, "reference_target": reference_target, "emitters": emitters,
+        "timing_resolutions": [list(r) for r in timing_resolutions], "timing_scene": timing_scene,
     })
+    extra = {"reference_target": float(reference_target), "emitters": emitters}
 
     for scene_spec in scenes:
         for task in tasks:
@@ -273,7 +312,15 @@ def make_plan(
                 continue
             _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_specs, configured, metric_specs,
                              metric_ids, backends=backends, spp=spp, seeds=seeds, frames=frames, repeats=repeats,
-                             reference_spp=reference_spp, nonfinite=nonfinite)
+                             reference_spp=reference_spp, sampled_reference_spp=sampled_reference_spp,
+                             nonfinite=nonfinite, extra=extra)
+    if timing_resolutions:
+        for task in tasks:
+            group = timing_group(plan, task, timing_scene)
+            if group is not None:
+                resolutions = tuple(tuple(int(v) for v in r) for r in timing_resolutions)
+                group.timing = resolutions
+                group.jobs = [replace(job, timing=resolutions) for job in group.jobs]
     for fspec in filter_specs:
         if not any(job.filter == fspec.name for job in plan.jobs) and not any(
             job.filter == fspec.name for job, _ in plan.skipped
@@ -286,8 +333,26 @@ def make_plan(
     return plan
 
 
+def timing_group(plan: Plan, task: str, scene: str | None = None) -> Group | None:
+    """The group whose jobs also time their filter at real resolutions, for one task.
+
+    The group of ``scene`` where it serves the task, else of the first scene planned for the
+    task; of that scene, the group of the fewest samples per pixel and the first seed. None
+    when the task has no group.
+    """
+    groups = [g for g in plan.groups if g.task == task]
+    if not groups:
+        return None
+    names = [g.scene for g in groups]
+    chosen = scene if scene in names else names[0]
+    mine = [g for g in groups if g.scene == chosen]
+    low = min(g.spp for g in mine)
+    return [g for g in mine if g.spp == low][0]
+
+
 def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_specs, configured, metric_specs,
-                     metric_ids, *, backends, spp, seeds, frames, repeats, reference_spp, nonfinite) -> None:
+                     metric_ids, *, backends, spp, seeds, frames, repeats, reference_spp, sampled_reference_spp,
+                     nonfinite, extra) -> None:
     rname = renderer or choose_renderer(registry, scene_spec, task)
     rspec = registry.renderers.get(rname) if rname else None
     n_frames = scene_spec.frames if frames is None else max(1, min(scene_spec.frames, frames))
@@ -295,6 +360,8 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
     ref_spp = 0
     if rspec is not None and rspec.references:
         ref_spp = reference_spp if reference_spp is not None else rspec.reference_spp
+        if reference_spp is None and rspec.reference_spp and sampled_reference_spp is not None:
+            ref_spp = sampled_reference_spp
     identity = {
         "scene_version": scene_spec.version,
         "width": width,
@@ -304,6 +371,7 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
         "repeats": repeats,
         "reference_spp": ref_spp,
         "nonfinite": nonfinite,
+        **extra,
     }
     runnable = rspec is not None and scene_spec.kind in rspec.scene_kinds and task in rspec.tasks
     if runnable:
@@ -329,12 +397,15 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
                         continue
                     if group is None:
                         group = Group(task, scene_spec.name, rname, int(s), int(seed), frozenset(), n_frames,
-                                      (width, height), ref_spp)
+                                      (width, height), ref_spp, reference_target=float(extra["reference_target"]))
                     group.jobs.append(job)
                     group.channels = group.channels | ((fspec.requires | fspec.optional) & _provides(scene_spec, rspec))
             if group is not None:
                 if "spp" in _provides(scene_spec, rspec):
                     group.channels = group.channels | {"spp"}
+                if (extra["emitters"] == "exclude" and "emission" in rspec.provides
+                        and any("mask" in m.accepts for m in metric_specs)):
+                    group.channels = group.channels | {"emission"}  # the metrics' emitter mask
                 group.metrics = _metric_plan(metric_specs, rspec, n_frames)
                 plan.groups.append(group)
 

@@ -91,10 +91,12 @@ class Metric(Protocol):
     """A metric: ``spec.factory()`` returns one.
 
     ``kind="frame"``: ``metric(output, reference) -> float`` on (H, W, 3) float32 linear images;
-    ``kind="sequence"``: ``metric(outputs, references) -> float`` on lists of them.
+    ``kind="sequence"``: ``metric(outputs, references) -> float`` on lists of them. A metric
+    whose spec declares ``accepts`` also receives those keyword arguments
+    (``reference_variance=``, ``mask=``; see :class:`harness.MetricSpec`).
     """
 
-    def __call__(self, output: np.ndarray | Sequence[np.ndarray], reference: Any) -> float: ...
+    def __call__(self, output: np.ndarray | Sequence[np.ndarray], reference: Any, **inputs: Any) -> float: ...
 
 
 def check_renderer(spec, renderer) -> None:

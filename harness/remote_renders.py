@@ -18,6 +18,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 
 from harness.buffers import Frame
 from harness.executors.base import Executor, Shared
+from harness.references import reference_record
 from harness.renders import DEFAULT_CHUNK, REFERENCE_SEED, RenderStore
 from harness.tasks import ChunkTask, FrameTask
 
@@ -87,6 +88,28 @@ class RemoteRenders:
             return self._once(key, here)
         return self._once(key, lambda: self.store.reference(
             scene, renderer, frame_index, spp=spp, chunk=self.chunk, progress=progress,
+            map_chunks=self._chunk_tasks(scene, renderer, frame_index)))
+
+    def reference_record(self, scene, renderer: str, frame_index: int, *, spp: int, target: float = 0.0,
+                         progress=None) -> Future:
+        """A future of the reference with its variance of the mean (:func:`harness.references.reference_record`).
+
+        Its batches of samples are chunk tasks on the workers; the client adds them in sample
+        order, so the image and the variance are the ones a local render gives, bit for bit.
+        """
+        scene = self.store.scene(scene) if isinstance(scene, str) else scene
+        spec = self.store.registry.get("renderer", renderer)
+        key = self.store.key("reference-moments", scene, renderer, frame_index, spp=spp, seed=REFERENCE_SEED,
+                             target=float(target))
+        if spp == 0 or not spec.chunked:
+            def here():
+                with self._here:
+                    return reference_record(self.store, scene, renderer, frame_index, spp=spp, target=target,
+                                            progress=progress)
+
+            return self._once(key, here)
+        return self._once(key, lambda: reference_record(
+            self.store, scene, renderer, frame_index, spp=spp, target=target, chunk=self.chunk, progress=progress,
             map_chunks=self._chunk_tasks(scene, renderer, frame_index)))
 
     def _once(self, key: str, work) -> Future:

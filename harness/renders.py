@@ -47,6 +47,12 @@ class RenderStore:
         self._opened: dict = {}
         self._renderers: dict = {}
 
+    def at_resolution(self, resolution) -> RenderStore:
+        """A store rendering every scene at ``resolution`` that shares this one's cache, scenes and renderers."""
+        other = RenderStore(self.registry, self.cache, resolution=resolution, renderer_settings=self._settings)
+        other._scenes, other._opened, other._renderers = self._scenes, self._opened, self._renderers
+        return other
+
     # ----------------------------------------------------------------- scenes and renderers
     def add_scene(self, scene, path: str | Path | None = None) -> None:
         """Make a scene built outside the registry (e.g. opened from a folder) known by name."""

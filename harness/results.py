@@ -1,6 +1,9 @@
 """Results tables: reading and writing them, the per-scene summary and the leaderboard.
 
-The columns of a results table are defined once, in :mod:`harness.rows` (``Row``).
+The columns of a results table are defined once, in :mod:`harness.rows` (``Row``). The
+leaderboard ranks entries by one metric (:data:`RANK_BY` by default), with 95% intervals and
+paired tests between neighbours (:mod:`harness.statistics`, docs/statistics.md), and shows the
+filters' times at real resolutions.
 """
 
 from __future__ import annotations
@@ -13,7 +16,13 @@ import numpy as np
 import pandas as pd
 
 from harness.cache import atomic_write_bytes
-from harness.rows import combine, metric_columns
+from harness.rows import REAL_RESOLUTIONS, combine, metric_columns, timing_column
+from harness.statistics import CELL_KEYS, RESAMPLES, interval, paired
+
+#: the metric leaderboards rank by when it is scored (display-referred, comparable to the paper's RMSE)
+RANK_BY = "display_rmse"
+#: the real-resolution time columns
+TIME_COLUMNS = [timing_column(w, h) for w, h in REAL_RESOLUTIONS]
 
 
 def write_table(df: pd.DataFrame, path: Path) -> None:
@@ -36,7 +45,12 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
 
 
 def summary(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (task, scene, filter, preset, backend, spp): mean of each metric, median ms, samples, statuses."""
+    """Per (task, scene, filter, preset, backend, spp): metric means over frames and seeds, times, statuses.
+
+    ``ms_median`` is the median per-frame time at the scene's (quality) resolution;
+    ``ms_1280x720`` and ``ms_1920x1080`` the real-resolution timings where this scene was the
+    timing scene; ``reference_noise`` the mean noise floor of its references.
+    """
     metrics = metric_columns(df)
     keys = ["task", "scene", "filter", "preset", "backend", "spp"]
     rows = []
@@ -46,6 +60,8 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
         for m in metrics:
             row[m] = ok[m].mean() if len(ok) and ok[m].notna().any() else math.nan
         row["ms_median"] = ok["ms_median"].median() if len(ok) else math.nan
+        for column in (*TIME_COLUMNS, "reference_noise"):
+            row[column] = ok[column].mean() if len(ok) and ok[column].notna().any() else math.nan
         row["spp_used"] = ok["samples_used"].sum() / max(1, (ok["width"] * ok["height"]).sum()) if len(ok) else math.nan
         row["frames"] = len(ok)
         bad = g[g.status != "ok"]
@@ -54,42 +70,179 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def leaderboard(df: pd.DataFrame, metric_specs: dict) -> pd.DataFrame:
-    """Filters ranked by their mean rank over scenes and metrics (best first), one board per task.
+def entry_labels(df: pd.DataFrame) -> pd.Series:
+    """A leaderboard entry name per row: ``filter[preset]/backend``, plus the parameters where one
+    filter ran with several, and ``@Nspp`` where the table has several spp."""
+    label = df["filter"] + df["preset"].map(lambda p: f"[{p}]" if p else "") + "/" + df["backend"]
+    several = df.groupby("filter")["params"].transform("nunique") > 1
+    label = label.where(~several, label + " " + df["params"])
+    if df["spp"].nunique() > 1:
+        label = label + df["spp"].map(lambda n: f" @{n}spp")
+    return label
+
+
+def rank_metric(metrics, rank_by: str | None = None) -> str:
+    """The metric a leaderboard ranks by: ``rank_by`` (which must be scored), else :data:`RANK_BY`
+    where scored, else the first metric in name order."""
+    metrics = list(metrics)
+    if rank_by is not None:
+        if rank_by not in metrics:
+            raise ValueError(f"cannot rank by {rank_by!r}: the table scores {sorted(metrics)}")
+        return rank_by
+    if RANK_BY in metrics:
+        return RANK_BY
+    if not metrics:
+        raise ValueError("the table has no scored metric to rank by")
+    return sorted(metrics)[0]
+
+
+def _cells(g: pd.DataFrame, metric: str) -> pd.DataFrame:
+    cells = g[[*CELL_KEYS, metric]].dropna(subset=[metric]).rename(columns={metric: "value"})
+    return cells.groupby(CELL_KEYS, as_index=False)["value"].mean()
+
+
+def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None) -> pd.DataFrame:
+    """Entries ranked by one metric, with 95% intervals and paired tests, one board per task.
 
     Parameters
     ----------
     df : DataFrame
         A results table.
     metric_specs : mapping name -> MetricSpec
-        For the direction of each metric (metrics without a spec count as lower-is-better).
+        Direction of each metric (without a spec: lower is better) and its noise-floor column.
+    rank_by : str, optional
+        The metric to rank by (default :func:`rank_metric`).
 
     Returns
     -------
     DataFrame
-        Columns ``task``, ``entry`` (filter[preset]/backend), the metrics (means over scenes),
-        ``ms_median`` and ``rank``; sorted by task, then rank.
+        Per task, entries best first: ``rank``, ``entry``, for every metric its score (mean
+        over scenes of per-scene means) with ``<metric>_lo``/``<metric>_hi`` (95% bootstrap
+        interval, :mod:`harness.statistics`), ``vs_next`` (the paired test against the next
+        entry on the ranking metric: ``better``, ``not significant`` or ``not resolved`` when
+        the difference is below the references' noise floor, with the p-value), ``p_next``,
+        the real-resolution times (``ms_1280x720``, ``ms_1920x1080``), ``timed_on`` (only when
+        the rows were timed on several machine setups: each entry's), ``scenes`` and
+        ``cells`` (scene x seed x frame values of the ranking metric). ``attrs["rank_by"]``
+        names the ranking metric.
     """
-    summ = summary(df[df.status == "ok"])
-    if summ.empty:
-        return summ
-    summ["entry"] = summ["filter"] + summ["preset"].map(lambda p: f"[{p}]" if p else "") + "/" + summ["backend"]
-    ranks = []
-    for m in metric_columns(df):
-        if summ[m].notna().sum() == 0:
-            continue
-        higher = getattr(metric_specs.get(m), "higher_is_better", False)
-        ranks.append(summ.groupby(["task", "scene"])[m].rank(ascending=not higher, method="average"))
-    summ["rank"] = pd.concat(ranks, axis=1).mean(axis=1) if ranks else math.nan
-    cols = [m for m in metric_columns(df) if summ[m].notna().any()] + ["ms_median", "rank"]
-    board = summ.groupby(["task", "entry"])[cols].mean().reset_index()
-    setups = timing_setups(df)
-    if len(setups) > 1:  # rows timed on different machines: say which, entry by entry
-        ok = df[df.status == "ok"].assign(entry=lambda d: d["filter"] + d["preset"].map(
-            lambda p: f"[{p}]" if p else "") + "/" + d["backend"], setup=lambda d: _setup_labels(d))
-        timed_on = ok.groupby(["task", "entry"])["setup"].agg(lambda v: "; ".join(sorted(set(v))))
-        board["timed_on"] = [timed_on.get((t, e), "") for t, e in zip(board["task"], board["entry"])]
-    return board.sort_values(["task", "rank"], kind="stable").reset_index(drop=True)
+    ok = df[df.status == "ok"]
+    metrics = [m for m in metric_columns(df) if ok[m].notna().any()]
+    if ok.empty or not metrics:
+        return pd.DataFrame()
+    rank_by = rank_metric(metrics, rank_by)
+    spec = metric_specs.get(rank_by)
+    higher = getattr(spec, "higher_is_better", False)
+    floor_column = getattr(spec, "noise_floor", "")
+    ok = ok.assign(entry=entry_labels(ok))
+    multiple_setups = len(timing_setups(df)) > 1
+    boards = []
+    for task, part in ok.groupby("task", sort=True):
+        rows, cells = [], {}
+        for entry, g in part.groupby("entry", sort=True):
+            row = {"task": task, "entry": entry}
+            for m in metrics:
+                iv = interval(_cells(g, m))
+                row[m], row[f"{m}_lo"], row[f"{m}_hi"] = iv.mean, iv.low, iv.high
+            cells[entry] = _cells(g, rank_by)
+            if floor_column in g:
+                cells[entry] = cells[entry].merge(_floor(g, floor_column), on=CELL_KEYS, how="left")
+            for column in TIME_COLUMNS:
+                row[column] = g[column].median() if g[column].notna().any() else math.nan
+            if multiple_setups:  # rows timed on different machines: say which, entry by entry
+                row["timed_on"] = "; ".join(sorted(set(_setup_labels(g))))
+            row["scenes"] = int(cells[entry]["scene"].nunique())
+            row["cells"] = len(cells[entry])
+            rows.append(row)
+        board = pd.DataFrame(rows).sort_values(rank_by, ascending=not higher, na_position="last", kind="stable")
+        board = board.reset_index(drop=True)
+        board.insert(1, "rank", np.arange(1, len(board) + 1))
+        verdicts, ps = [], []
+        for a, b in zip(board["entry"], list(board["entry"][1:]) + [None]):
+            if b is None:
+                verdicts.append("")
+                ps.append(math.nan)
+                continue
+            verdict, p = _compare(cells[a], cells[b], floor_column)
+            verdicts.append(verdict)
+            ps.append(p)
+        board["vs_next"], board["p_next"] = verdicts, ps
+        boards.append(board)
+    out = pd.concat(boards, ignore_index=True)
+    ordered = ["task", "rank", "entry", rank_by, f"{rank_by}_lo", f"{rank_by}_hi", "vs_next", "p_next"]
+    for m in metrics:
+        if m != rank_by:
+            ordered += [m, f"{m}_lo", f"{m}_hi"]
+    out = out[ordered + [*TIME_COLUMNS, *(["timed_on"] if multiple_setups else []), "scenes", "cells"]]
+    out.attrs["rank_by"] = rank_by
+    out.attrs["higher_is_better"] = higher
+    return out
+
+
+def _floor(g: pd.DataFrame, column: str) -> pd.DataFrame:
+    return g.groupby(CELL_KEYS, as_index=False)[column].mean().rename(columns={column: "floor"})
+
+
+def _compare(first: pd.DataFrame, second: pd.DataFrame, floor_column: str) -> tuple[str, float]:
+    """The verdict of a paired test of two neighbouring entries, and its p-value."""
+    test = paired(first[[*CELL_KEYS, "value"]], second[[*CELL_KEYS, "value"]])
+    if test.cells == 0:
+        return "no common cells", math.nan
+    if test.cells == 1:
+        return "one common cell: no test", math.nan
+    verdict = f"better (p{_p(test.p_value)})" if test.significant else f"not significant (p{_p(test.p_value)})"
+    if "floor" in first:
+        floor = first.merge(second[CELL_KEYS], on=CELL_KEYS)["floor"].mean()
+        if np.isfinite(floor) and abs(test.difference) < floor:
+            verdict += f"; not resolved: |diff| {abs(test.difference):.2g} < reference noise {floor:.2g}"
+    return verdict, test.p_value
+
+
+def _p(p: float) -> str:
+    return f"<{1 / RESAMPLES:.0e}" if p == 0 else f"={p:.2g}"
+
+
+def board_table(board: pd.DataFrame, metrics=None, intervals: str = "all") -> pd.DataFrame:
+    """A leaderboard as strings: metrics as ``mean [low, high]``, times in ms.
+
+    Parameters
+    ----------
+    board : DataFrame
+        One task's rows of :func:`leaderboard`.
+    metrics : list of str, optional
+        Metrics to show (default: all of the board's, the ranking one first).
+    intervals : {"all", "rank"}
+        Intervals for every metric, or for the ranking metric only (the others as means).
+    """
+    rank_by = board.attrs.get("rank_by")
+    known = [c[:-3] for c in board.columns if c.endswith("_lo")]
+    metrics = list(metrics or known)
+    if rank_by in metrics:
+        metrics.remove(rank_by)
+        metrics.insert(0, rank_by)
+    out = pd.DataFrame({"rank": board["rank"].astype(int), "entry": board["entry"]})
+    for m in metrics:
+        if intervals == "all" or m == rank_by:
+            out[m] = [_with_interval(v, lo, hi) for v, lo, hi in zip(board[m], board[f"{m}_lo"], board[f"{m}_hi"])]
+        else:
+            out[m] = board[m].map(lambda v: _format_float(v, "{:.4g}"))
+        if m == rank_by:
+            out["vs next"] = board["vs_next"]
+    for column in TIME_COLUMNS:
+        out[column] = board[column].map(lambda v: _format_float(v, "{:.4g}"))
+    if "timed_on" in board:
+        out["timed_on"] = board["timed_on"]
+    out["scenes"] = board["scenes"]
+    out["cells"] = board["cells"]
+    return out
+
+
+def _with_interval(value, low, high) -> str:
+    if value is None or not np.isfinite(value):
+        return "-"
+    if not (np.isfinite(low) and np.isfinite(high)) or low == high:
+        return f"{value:.4g}"
+    return f"{value:.4g} [{low:.4g}, {high:.4g}]"
 
 
 def timing_setups(df: pd.DataFrame) -> list[str]:

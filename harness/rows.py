@@ -25,11 +25,19 @@ column is one field here.
 ``ms_median/min/max``     per-frame filter time over ``repeats`` calls
 ``repeats``               timed calls per frame
 ``stage_ms``              JSON of the filter's own per-stage breakdown, if it declares one
+``ms_1280x720``           median per-frame filter time on a 1280x720 frame of the timing scene
+``ms_1920x1080``          the same at 1920x1080 (both on the rows of one job per filter configuration
+                          and task, see :mod:`harness.timing`; NaN on the others)
 ``threads``               Numba threads of the process that ran the job
 ``machine``               CPU (and GPU) of the machine that ran the job
 ``nonfinite_repaired``    values replaced under ``--nonfinite repair``
-``reference_spp``         samples per pixel of the reference (0: analytic)
+``reference_spp``         samples per pixel of this frame's reference (0: analytic)
 ``reference_hash``        SHA-256 of this frame's reference image
+``reference_error``       its median relative standard error (:mod:`harness.references`; NaN unknown)
+``reference_noise``       its RMS standard error over the scored pixels, linear radiance: the RMSE a
+                          perfect output would show uncorrected; ``rmse`` differences below it are
+                          not resolved by this reference
+``reference_noise_display`` the same on the displayed image (``display_rmse``'s floor)
 ========================  ==============================================================
 
 Timing columns (``timing=True``) and ``machine``/``threads`` are the only ones that differ
@@ -78,11 +86,16 @@ class Row:
     ms_max: float = _col("float64", "tail", timing=True)
     repeats: int = _col("int64", "tail", timing=True)
     stage_ms: str = _col("str", "tail", timing=True)
+    ms_1280x720: float = _col("float64", "tail", timing=True)
+    ms_1920x1080: float = _col("float64", "tail", timing=True)
     threads: int = _col("int64", "tail")
     machine: str = _col("str", "tail")
     nonfinite_repaired: int = _col("int64", "tail")
     reference_spp: int = _col("int64", "tail")
     reference_hash: str = _col("str", "tail")
+    reference_error: float = _col("float64", "tail")
+    reference_noise: float = _col("float64", "tail")
+    reference_noise_display: float = _col("float64", "tail")
     metrics: dict = field(default_factory=dict, metadata={"part": "metrics"})
 
     def as_dict(self) -> dict:
@@ -106,6 +119,17 @@ TIMING_COLUMNS: list[str] = [f.name for f in fields(Row) if f.metadata.get("timi
 DTYPES: dict[str, str] = {f.name: f.metadata["dtype"] for f in fields(Row) if "dtype" in f.metadata}
 #: the order rows are sorted in
 SORT_KEYS = ["task", "scene", "renderer", "filter", "backend", "preset", "params", "spp", "seed", "frame"]
+
+
+#: the real resolutions filters are timed at, each with its column ``ms_<w>x<h>``
+REAL_RESOLUTIONS = ((1280, 720), (1920, 1080))
+
+
+def timing_column(width: int, height: int) -> str:
+    """The column of the per-frame time at a real resolution (one of :data:`REAL_RESOLUTIONS`)."""
+    if (width, height) not in REAL_RESOLUTIONS:
+        raise ValueError(f"filters are timed at {[f'{w}x{h}' for w, h in REAL_RESOLUTIONS]}, not {width}x{height}")
+    return f"ms_{width}x{height}"
 
 
 def metric_columns(df: pd.DataFrame) -> list[str]:
@@ -134,7 +158,7 @@ def conform(df: pd.DataFrame, metrics=None) -> pd.DataFrame:
     df = df.reindex(columns=HEAD_COLUMNS + metrics + TAIL_COLUMNS)
     for name, dtype in DTYPES.items():
         if dtype == "str":
-            df[name] = df[name].fillna("").astype(str)
+            df[name] = df[name].astype(object).where(df[name].notna(), "").astype(str)
         elif dtype == "int64":
             df[name] = pd.to_numeric(df[name], errors="coerce").fillna(-1).astype("int64")
         else:

@@ -38,11 +38,13 @@ from harness.lock import FolderLock, check_out_dir
 from harness.manifest import make_manifest, write_manifest
 from harness.nonfinite import apply_nonfinite_policy
 from harness.plan import Group, Plan
+from harness.references import reference_record
 from harness.remote_renders import RemoteRenders
 from harness.renders import RenderStore
 from harness.results import write_table
 from harness.rows import combine, make_table
 from harness.tasks import JobTask
+from harness.timing import timing_frames
 
 
 @dataclass
@@ -249,20 +251,26 @@ class _Run:
         if self.concurrent:  # every frame and reference requested at once, rendered on workers
             frames = [self.renders.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed,
                                          channels=group.channels) for t in range(group.frames)]
-            refs = [self.renders.reference(scene, group.renderer, t, spp=group.reference_spp)
+            refs = [self.renders.reference_record(scene, group.renderer, t, spp=group.reference_spp,
+                                                  target=group.reference_target)
                     if rspec.references else None for t in range(group.frames)]
         for t in range(group.frames):
             if self.concurrent:
-                frame, ref = frames[t].result(), refs[t].result() if refs[t] is not None else None
+                frame, record = frames[t].result(), refs[t].result() if refs[t] is not None else None
             else:
                 frame = store.frame(scene, group.renderer, t, spp=group.spp, seed=group.seed,
                                     channels=group.channels)
-                ref = store.reference(scene, group.renderer, t, spp=group.reference_spp) if rspec.references else None
+                record = (reference_record(store, scene, group.renderer, t, spp=group.reference_spp,
+                                           target=group.reference_target) if rspec.references else None)
             frame, count = apply_nonfinite_policy(frame, nonfinite, owner=f"renderer {group.renderer!r}")
+            ref = record.image if record is not None else None
             inputs.frames.append(frame)
             inputs.repaired.append(count)
             inputs.references.append(ref)
             inputs.reference_hashes.append(array_hash(ref) if ref is not None else "")
+            inputs.reference_variances.append(record.variance if record is not None else None)
+            inputs.reference_quality.append((record.spp, record.error) if record is not None else None)
+        inputs.timing_frames = timing_frames(store, group, nonfinite)
         return inputs
 
 

@@ -15,6 +15,8 @@ from harness.buffers import CHANNELS
 from harness.params import Param, param_table
 
 BACKENDS = ("cpu", "cuda")
+#: optional inputs a metric may declare in ``MetricSpec.accepts``
+METRIC_INPUTS = ("reference_variance", "mask")
 #: the benchmark tasks: ``denoise`` (1-spp path-traced input, converged path-traced reference) and
 #: ``antialias`` (one jittered shading sample per pixel, supersampled reference)
 TASKS = ("denoise", "antialias")
@@ -259,6 +261,15 @@ class MetricSpec:
     kind : {"frame", "sequence"}
     min_frames : int
         Fewest frames the metric can score (a sequence metric needs at least 2).
+    accepts : iterable of str
+        Optional keyword arguments the metric takes (:data:`METRIC_INPUTS`); the harness passes
+        exactly these: ``reference_variance`` (the reference's per-pixel variance of the mean,
+        (H, W, 3), or None where unknown) and ``mask`` ((H, W) bool, True where a pixel is
+        scored, or None for every pixel). A sequence metric gets lists of them, one per frame.
+    noise_floor : str
+        The results column holding the reference's noise floor in this metric's units
+        (``reference_noise``, ``reference_noise_display``), for metrics that have one: the
+        leaderboard marks a difference smaller than it as not resolved by the references.
     """
 
     name: str
@@ -268,13 +279,21 @@ class MetricSpec:
     kind: str = "frame"
     min_frames: int = 1
     description: str = ""
+    accepts: frozenset = frozenset()
+    noise_floor: str = ""
 
     def __post_init__(self):
         if self.kind not in ("frame", "sequence"):
             raise ValueError(f"metric {self.name!r}: kind must be 'frame' or 'sequence', got {self.kind!r}")
+        accepts = frozenset([self.accepts] if isinstance(self.accepts, str) else self.accepts)
+        unknown = sorted(accepts - set(METRIC_INPUTS))
+        if unknown:
+            raise ValueError(f"metric {self.name!r}: accepts unknown input(s) {unknown}; known: {list(METRIC_INPUTS)}")
+        object.__setattr__(self, "accepts", accepts)
 
     def declarations(self) -> dict:
-        return {"higher_is_better": self.higher_is_better, "kind": self.kind, "min_frames": self.min_frames}
+        return {"higher_is_better": self.higher_is_better, "kind": self.kind, "min_frames": self.min_frames,
+                "accepts": sorted(self.accepts), "noise_floor": self.noise_floor}
 
 
 @dataclass(frozen=True)

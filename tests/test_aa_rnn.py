@@ -3,6 +3,7 @@ kept apart from the benchmark scenes, architecture guarantees, weights validatio
 
 from __future__ import annotations
 
+import hashlib
 import json
 
 import numpy as np
@@ -16,7 +17,9 @@ from plugins.filters.aa_rnn.train import QUICK, scene_seeds, train
 from plugins.filters.aa_rnn.trainscenes import PREFIX, make_scene
 from plugins.filters.aa_rnn.weights import (
     DEFAULT_LAYERS,
+    SHIPPED,
     WeightsError,
+    arrays_digest,
     load_weights,
     model_arrays,
     save_weights,
@@ -104,7 +107,7 @@ def test_same_seed_gives_the_same_weights_and_another_seed_others(tmp_path):
 
 def test_training_scenes_are_never_benchmark_scenes(registry):
     meta = load_weights(shipped_weights(DEFAULT_LAYERS))[1]
-    seeds = sum(meta["scene_seeds"].values(), [])
+    seeds = sum((meta["scene_seeds"][k] for k in ("train", "validation", "test")), [])
     assert seeds == scene_seeds(meta["seed"], meta["config"]["scenes"])
     assert len(seeds) == meta["config"]["scenes"] and len(set(seeds)) == len(seeds)
     benchmark = {spec.factory().content_hash(): name for name, spec in registry.scenes.items()
@@ -120,8 +123,20 @@ def test_training_scenes_are_never_benchmark_scenes(registry):
     assert sizes == [36, 12, 12]
 
 
+def test_shipped_weights_match_their_recorded_hashes(registry):
+    assert DEFAULT_LAYERS in SHIPPED
+    for layers, recorded in SHIPPED.items():
+        path = shipped_weights(layers)
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == recorded["file"], path.name
+        arrays, meta = load_weights(path)  # checks the arrays against the digest stored in the file
+        assert arrays_digest(arrays) == meta["arrays_sha256"] == recorded["arrays"]
+        assert meta["training_data_sha256"] == recorded["training_data"] and meta["seed"] == 0
+    filt = registry.get("filter", "aa_rnn").factory()  # the default loads the shipped weights
+    assert filt.meta["arrays_sha256"] == SHIPPED[DEFAULT_LAYERS]["arrays"]
+
+
 def test_shipped_weights_beat_the_aliased_input_on_held_out_training_scenes():
-    for layers in (2, 4, 6):
+    for layers in SHIPPED:
         arrays, meta = load_weights(shipped_weights(layers))
         assert meta["layers"] == layers and len(meta["training_data_sha256"]) == 64
         test = meta["scores"]["test"]
@@ -196,3 +211,101 @@ def test_spec_declares_the_task_and_the_trainer(registry):
     spec = registry.get("filter", "aa_rnn")
     assert spec.tasks == {"antialias"} and spec.temporal and spec.trainer is not None
     assert {"color", "normal", "depth", "motion"} <= spec.requires
+
+
+# An independent float64 NumPy computation of the network's step (loops over the 3x3 taps, no
+# PyTorch), from the definitions in plugins/filters/aa_rnn/network.py's docstring.
+
+def _np_pad(x, mode):
+    return np.pad(x, ((0, 0), (1, 1), (1, 1)), mode="edge" if mode == "replicate" else "constant")
+
+
+def _np_windows(x, mode):
+    """The nine 3x3-shifted copies of (C, H, W) ``x``: taps[dy + 1][dx + 1][c, i, j] = x[c, i + dy, j + dx]."""
+    p = _np_pad(x, mode)
+    h, w = x.shape[1:]
+    return [[p[:, 1 + dy:1 + dy + h, 1 + dx:1 + dx + w] for dx in (-1, 0, 1)] for dy in (-1, 0, 1)]
+
+
+def _np_mean3(x):
+    return sum(t for row in _np_windows(x, "replicate") for t in row) / 9.0
+
+
+def _np_max3(x):
+    return np.max([t for row in _np_windows(x, "replicate") for t in row], axis=0)
+
+
+def _np_conv3x3(x, weight):
+    """Zero-padded 3x3 cross-correlation without bias: out[o] = sum_{c,dy,dx} w[o,c,dy,dx] x[c, i+dy-1, j+dx-1]."""
+    taps = _np_windows(x, "zeros")
+    out = np.zeros((weight.shape[0],) + x.shape[1:])
+    for ky in range(3):
+        for kx in range(3):
+            out += np.einsum("oc,chw->ohw", weight[:, :, ky, kx].astype(np.float64), taps[ky][kx])
+    return out
+
+
+def _np_bilinear(img, x, y):
+    """``img`` (C, H, W) at image points (x, y), coordinates clamped to the outer pixel centres."""
+    h, w = img.shape[1:]
+    x = np.clip(x, 0.0, w - 1.0)
+    y = np.clip(y, 0.0, h - 1.0)
+    x0 = np.minimum(np.floor(x).astype(int), w - 1)
+    y0 = np.minimum(np.floor(y).astype(int), h - 1)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    fx, fy = x - x0, y - y0
+    return (img[:, y0, x0] * (1 - fx) * (1 - fy) + img[:, y0, x1] * fx * (1 - fy)
+            + img[:, y1, x0] * (1 - fx) * fy + img[:, y1, x1] * fx * fy)
+
+
+def _np_step(frame, state, arrays, layers):
+    u_max = 1.0 - 2.0**-20
+    color = np.maximum(np.asarray(frame["color"], np.float64), 0.0).transpose(2, 0, 1)
+    u = color / (1.0 + color)
+    normal = np.asarray(frame["normal"], np.float64).transpose(2, 0, 1)
+    depth = np.asarray(frame["depth"], np.float64)
+    surface = np.isfinite(depth) & (depth > 0)
+    z = np.where(surface, 1.0 / np.where(surface, depth, 1.0), 0.0)[None]
+    motion = np.asarray(frame["motion"], np.float64)
+    h, w = depth.shape
+    x = np.arange(w)[None, :] + motion[..., 0] - frame.meta.jitter[0] * surface
+    y = np.arange(h)[:, None] + motion[..., 1] - frame.meta.jitter[1] * surface
+    if state is None:
+        history = u
+    else:
+        inside = (x >= -0.5) & (x <= w - 0.5) & (y >= -0.5) & (y <= h - 0.5)
+        history = np.where(inside[None], _np_bilinear(state, x, y), u)
+    g = np.maximum(_np_max3(u.max(axis=0, keepdims=True)), history.max(axis=0, keepdims=True))
+    inv_g = np.where(g > 1e-8, 1.0 / np.maximum(g, 1e-8), 0.0)
+    mz = _np_mean3(z)
+    dz = np.where(mz > 1e-12, (z - mz) / np.maximum(mz, 1e-12), 0.0)
+    f = np.concatenate([(u - _np_mean3(u)) * inv_g, (history - u) * inv_g, normal - _np_mean3(normal), dz])
+    for k in range(layers):
+        f = np.maximum(_np_conv3x3(f, arrays[f"conv{k}"]), 0.0)
+    out = np.clip(u + g * _np_conv3x3(f, arrays["head"]), 0.0, u_max)
+    return out
+
+
+def test_forward_pass_equals_an_independent_numpy_computation(registry):
+    arrays, _ = load_weights(shipped_weights(DEFAULT_LAYERS))
+    filt = registry.get("filter", "aa_rnn").factory(backend="cpu")
+    frames = _frames(4, h=9, w=13, seed=5)
+    state = None
+    for frame in frames:
+        out = filt(frame)
+        state = _np_step(frame, state, arrays, DEFAULT_LAYERS)
+        # in the tone-mapped domain u = x / (1 + x), where float32 rounding is uniform
+        np.testing.assert_allclose(out / (1.0 + out), state.transpose(1, 2, 0), atol=1e-5)
+    aliased = frames[-1]["color"] / (1.0 + frames[-1]["color"])
+    assert np.abs(state.transpose(1, 2, 0) - aliased).max() > 1e-2, "the network changes the image"
+
+
+def test_numpy_convolution_is_pytorchs_conv2d_on_a_small_input():
+    rng = np.random.default_rng(7)
+    x = rng.normal(size=(4, 5, 6))
+    weight = rng.normal(size=(3, 4, 3, 3)).astype(np.float32)
+    expected = torch.nn.functional.conv2d(torch.from_numpy(x)[None], torch.from_numpy(weight).double(), padding=1)
+    np.testing.assert_allclose(_np_conv3x3(x, weight), expected[0].numpy(), atol=1e-12)
+    # one output by hand: the corner pixel sees only the 2x2 taps inside the image
+    corner = sum(weight[1, c, ky, kx] * x[c, ky - 1, kx - 1] for c in range(4) for ky in (1, 2) for kx in (1, 2))
+    assert abs(_np_conv3x3(x, weight)[1, 0, 0] - corner) < 1e-12

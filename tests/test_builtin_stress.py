@@ -350,3 +350,36 @@ def test_svgf_camera_cuts_and_alternating_resolutions(registry):
             # no usable history: the output equals a fresh filter's
             np.testing.assert_array_equal(out, spec.factory(backend="cpu")(frame))
 
+
+
+# ---------------------------------------------------------------- the harness's repair policy upstream
+
+
+def _broken_everywhere(fr):
+    """``fr`` with NaN, +-inf and 3e38 at a few pixels of every float channel."""
+    arrays = {}
+    for ch in fr.channels:
+        a = fr[ch].copy()
+        if a.dtype.kind != "f":
+            continue
+        for (y, x), value in zip(((2, 3), (4, 5), (6, 7), (1, 1), (8, 2)), (np.nan, np.inf, -np.inf, 3e38, -3e38)):
+            a[y, x] = value
+        arrays[ch] = a
+    return fr.replace(**arrays)
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_repaired_frames_pass(registry, name):
+    """Frames repaired by ``--nonfinite repair`` (harness.nonfinite) never crash a filter, and
+    its output is finite."""
+    from harness.nonfinite import apply_nonfinite_policy
+
+    spec = _spec(registry, name)
+    frames = []
+    for fr in _frames(spec):
+        repaired, count = apply_nonfinite_policy(_broken_everywhere(fr), "repair")
+        assert count > 0
+        frames.append(repaired)
+    _, outs = _run(spec, frames)
+    for out in outs:
+        assert np.isfinite(out).all(), f"{name}: non-finite output on a repaired frame"

@@ -181,7 +181,8 @@ def test_cli_render_then_run_on_a_local_cluster(tmp_path):
     assert "dask: a local cluster, 2 worker(s) on 1 machine(s); dashboard" in render.stderr
     assert "synthetic-static: 2 reference frame(s) at 9 spp, 32x24, in the cache" in render.stdout
     out = bench(["run", "--scenes", "synthetic-static", "--frames", "2", "--resolution", "32x24", "--reference-spp",
-                 "9", "--filters", "passthrough,gaussian", "--repeats", "1", "--executor", "dask", "--quiet",
+                 "9", "--filters", "passthrough,gaussian", "--repeats", "1", "--seeds", "0", "--timing-at", "none",
+                 "--executor", "dask", "--quiet",
                  "--out", tmp_path / "o", "--cache-dir", cache])
     assert "2 reused from the cache, 2 rendered" in out.stdout  # the references, then the noisy frames
     table = pd.read_parquet(tmp_path / "o" / "results.parquet")
@@ -194,7 +195,8 @@ def test_an_interrupted_cluster_run_resumes_like_a_local_one(tmp_path):
     def args(executor, out):
         extra = ["--executor", "dask", "--workers", "2"] if executor == "dask" else []
         return ["run", "--scenes", "synthetic-moving", "--filters", "passthrough,gaussian,median3", "--spp", "1,2",
-                "--frames", "4", "--resolution", "160x120", "--repeats", "10", "--quiet", "--cache-dir",
+                "--frames", "4", "--resolution", "160x120", "--repeats", "10", "--seeds", "0", "--timing-at", "none",
+                "--quiet", "--cache-dir",
                 tmp_path / "cache", "--out", tmp_path / out, *extra]
 
     proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *map(str, args("dask", "k"))], env=bench_env(),

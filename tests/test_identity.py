@@ -17,7 +17,7 @@ from harness.renders import RenderStore
 from tests.test_run import bench
 
 RUN = ["run", "--scenes", "synthetic-edges,synthetic-moving", "--filters", "passthrough,gaussian", "--quiet",
-       "--repeats", "1", "--executor", "inline"]
+       "--repeats", "1", "--executor", "inline", "--seeds", "0", "--timing-at", "none", "--frames", "16"]
 
 
 def _ids(**options):

@@ -66,6 +66,7 @@ def faulty(fake_distribution):
 
 def test_each_crash_is_one_error_row_and_the_run_completes(tmp_path, faulty):
     args = ["run", "--scenes", "synthetic-edges,synthetic-moving", "--frames", "2", "--quiet", "--repeats", "1",
+            "--seeds", "0", "--timing-at", "none",
             "--filters", "hang,exit,segv,oom,osexit,print,passthrough", "--timeout", "4",
             "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"]
     out = bench([*args, "--strict"], env=bench_env(faulty), check=False)

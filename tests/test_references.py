@@ -86,7 +86,8 @@ def test_render_command_fills_the_cache_that_run_uses(tmp_path):
                  "--cache-dir", tmp_path / "c"])
     assert "synthetic-static: 2 reference frame(s) at 8 spp, 128x96, in the cache" in out.stdout
     run = bench(["run", "--scenes", "synthetic-static", "--frames", "2", "--filters", "passthrough",
-                 "--reference-spp", "8", "--quiet", "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
+                 "--reference-spp", "8", "--quiet", "--seeds", "0", "--timing-at", "none", "--out", tmp_path / "o",
+                 "--cache-dir", tmp_path / "c"])
     assert "2 reused from the cache, 2 rendered" in run.stdout  # references reused, noisy frames rendered
 
 
@@ -95,3 +96,11 @@ def test_bench_command_reports_ratios_to_peers():
     lines = out.stdout.splitlines()
     assert any(line.split()[:2] == ["gaussian", "64x48"] for line in lines)
     assert "x_vs_passthrough" in out.stdout and "rmse" in out.stdout
+
+
+def test_bench_without_error_renders_no_reference(tmp_path):
+    out = bench(["bench", "noaa", "--peers", "taa", "--task", "antialias", "--scene", "aa-fence", "--resolution",
+                 "32x18", "--repeats", "2", "--no-error", "--cache-dir", tmp_path / "c"])
+    assert "x_vs_taa" in out.stdout and "rmse" not in out.stdout
+    stored = [p for p in (tmp_path / "c").rglob("*") if p.is_file()]
+    assert len(stored) == 2, stored  # the two frames taa needs; no reference

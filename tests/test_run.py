@@ -30,6 +30,10 @@ BASE = [
     "passthrough,gaussian,median3",
     "--repeats",
     "2",
+    "--seeds",
+    "0",
+    "--timing-at",
+    "none",
     "--quiet",
 ]
 
@@ -102,6 +106,10 @@ def test_a_killed_run_resumes_without_recomputing_stored_jobs(tmp_path):
         "1,2",
         "--repeats",
         "3",
+        "--seeds",
+        "0",
+        "--timing-at",
+        "none",
         "--quiet",
         "--cache-dir",
         tmp_path / "cache",
@@ -308,10 +316,10 @@ def test_pictures_are_written(tmp_path):
 def test_mesh_scenes_run_end_to_end_with_the_path_tracer(tmp_path):
     out = bench(["run", "--scenes", "cornell,street", "--frames", "2", "--resolution", "32x24", "--reference-spp", "16",
                  "--filters", "eaw,svgf,sbf,lbf,passthrough", "--strict", "--quiet", "--repeats", "1",
-                 "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
+                 "--seeds", "0", "--timing-at", "none", "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
     df = pd.read_parquet(tmp_path / "o" / "results.parquet")
     assert set(df.status) == {"ok"}, out.stdout
-    assert set(df.renderer) == {"pathtracer"} and len(df) == 5 * (1 + 2)
+    assert set(df.renderer) == {"pathtracer"} and len(df) == 5 * (2 + 2)
     assert np.isfinite(df[["rmse", "ssim", "flip", "relmse"]].to_numpy()).all()
     street = df[df.scene == "street"]
     assert street.groupby("filter").temporal_error.count().eq(1).all()

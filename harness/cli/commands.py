@@ -16,8 +16,19 @@ from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
 from harness.manifest import read_manifest
 from harness.plan import choose_renderer, make_plan
+from harness.profiles import PROFILES, get_profile
+from harness.references import reference_record
 from harness.renders import RenderStore, scene_selection
-from harness.results import format_table, leaderboard, read_results, summary, timing_setups, to_markdown
+from harness.results import (
+    TIME_COLUMNS,
+    board_table,
+    format_table,
+    leaderboard,
+    read_results,
+    summary,
+    timing_setups,
+    to_markdown,
+)
 from harness.run import run_plan
 from harness.specs import TASKS
 
@@ -70,18 +81,33 @@ def cmd_run(registry, args) -> int:
         return _run(registry, args, tasks)
 
 
+def _profile(args):
+    """The run's profile with the options given on the command line in place of its values."""
+    return get_profile(args.profile).with_overrides(
+        resolution=args.resolution, frames=args.frames, seeds=tuple(args.seeds) if args.seeds else None,
+        reference_spp=args.reference_spp, reference_target=args.reference_target,
+        repeats=getattr(args, "repeats", None), timing=getattr(args, "timing_at", None),
+        timing_scene=getattr(args, "timing_scene", None),
+    )
+
+
 def _run(registry, args, tasks) -> int:
-    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    profile = _profile(args)
+    store = RenderStore(registry, _cache(args), resolution=profile.resolution)
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, tasks)
     filters = args.filters or sorted(n for n, s in registry.filters.items() if s.tasks & set(tasks))
     metrics = args.metrics or sorted(registry.metrics)
     plan = make_plan(
         registry, store, specs, filters, metrics, tasks=tasks, renderer=args.renderer, backends=args.backend,
-        spp=args.spp, seeds=args.seeds, frames=args.frames, params=_grouped(args.param), presets=dict(args.preset),
-        repeats=args.repeats, reference_spp=args.reference_spp, nonfinite=args.nonfinite,
+        spp=args.spp, seeds=list(profile.seeds), frames=profile.frames, params=_grouped(args.param),
+        presets=dict(args.preset), repeats=profile.repeats, reference_spp=args.reference_spp,
+        nonfinite=args.nonfinite, sampled_reference_spp=profile.reference_spp,
+        reference_target=profile.reference_target, emitters=args.emitters,
+        timing_resolutions=profile.timing, timing_scene=profile.timing_scene,
     )
-    print(f"denoise-bench run: {len(plan.jobs)} jobs on {len(specs)} scene(s), {len(plan.skipped)} skipped; "
-          f"results in {args.out}", file=sys.stderr)
+    plan.settings["profile"] = {**profile.as_dict(), "name": args.profile}
+    print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
+          f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
         outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
                            save_outputs=args.save_outputs, progress=_progress(args))
@@ -95,25 +121,26 @@ def _run(registry, args, tasks) -> int:
         if outcome.removed:
             line += f", {outcome.removed} stored jobs of other settings removed"
     print(line)
-    _print_summary(df, registry)
+    _print_summary(df, registry, args.rank_by)
     errors = int(df[df.status == "error"].job_id.nunique())
     if errors:
         print(f"\n{errors} job(s) with errors; see 'message' in {args.out / 'results.parquet'}")
     return 1 if (args.strict and errors) else 0
 
 
-def _print_summary(df: pd.DataFrame, registry) -> None:
+def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> None:
     ok = df[df.status == "ok"]
     if not ok.empty:
-        print("\nSummary (mean over frames; ms = median per-frame filter time):")
+        print("\nSummary (mean over frames and seeds; ms_median = median per-frame filter time at the scene's "
+              "resolution):")
         print(format_table(summary(ok)))
-        board = leaderboard(df, registry.metrics)
-        for task, part in board.groupby("task", sort=True):
-            print(f"\nLeaderboard, task {task} (mean rank over scenes and metrics, best first):")
-            print(format_table(part.drop(columns="task")))
+        board = leaderboard(df, registry.metrics, rank_by)
+        for task, part in _boards(board):
+            print(f"\n{_board_title(task, part, df)}:")
+            print(format_table(board_table(part, intervals="rank")))
         setups = timing_setups(df)
         if len(setups) > 1:
-            print(f"\nNote: rows were timed on {len(setups)} machine setups ({'; '.join(setups)}); compare ms_median "
+            print(f"\nNote: rows were timed on {len(setups)} machine setups ({'; '.join(setups)}); compare times "
                   "only between entries of the same setup (column timed_on)")
     skipped = df[df.status == "skipped"]
     if not skipped.empty:
@@ -129,6 +156,24 @@ def _print_summary(df: pd.DataFrame, registry) -> None:
             print(f"  {r.filter}/{r.backend} on {r.scene} frame {r.frame}: {r.message}")
 
 
+def _boards(board: pd.DataFrame):
+    """(task, that task's rows) of a leaderboard, keeping its attributes."""
+    for task, part in board.groupby("task", sort=True) if not board.empty else ():
+        part = part.drop(columns="task").reset_index(drop=True)
+        part.attrs.update(board.attrs)
+        yield task, part
+
+
+def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
+    rank_by = part.attrs.get("rank_by")
+    direction = "higher" if part.attrs.get("higher_is_better") else "lower"
+    timed = df[(df.task == task) & df[TIME_COLUMNS].notna().any(axis=1)]
+    where = f"on {', '.join(sorted(set(timed.scene)))}" if len(timed) else "not measured in this run"
+    return (f"Leaderboard, task {task}: ranked by {rank_by} ({direction} is better; mean over scenes of the "
+            f"per-scene means, 95% bootstrap interval over seeds and frames; 'vs next' is a paired test against "
+            f"the next entry; ms per frame at 1280x720 and 1920x1080 {where})")
+
+
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
     if (read_manifest(args.dir) or {}).get("kind") == "stress":
@@ -137,7 +182,7 @@ def cmd_show(registry, args) -> int:
     if args.all:
         print(format_table(df))
     else:
-        _print_summary(df, registry)
+        _print_summary(df, registry, args.rank_by)
     m = read_manifest(args.dir)
     provenance = ""
     if m:
@@ -148,14 +193,31 @@ def cmd_show(registry, args) -> int:
                       f"({m['machine'].get('numba_threads')} threads); created {m.get('created')}")
         print(f"\n{provenance}")
     if args.markdown is not None:
-        board = leaderboard(df, registry.metrics)
+        board = leaderboard(df, registry.metrics, args.rank_by)
         text = ["# Leaderboard", ""]
-        for task, part in board.groupby("task", sort=True):
-            text += [f"## Task {task}", "", to_markdown(part.drop(columns="task"))]
+        if m and m.get("settings", {}).get("profile"):
+            text += [_profile_line(m["settings"]["profile"]), ""]
+        if m and m.get("command"):
+            text += [f"Command: `{m['command']}`", ""]
+        for task, part in _boards(board):
+            text += [f"## Task {task}", "", _board_title(task, part, df) + ".", "", to_markdown(board_table(part))]
         text += ["## Per scene", "", to_markdown(summary(df[df.status == "ok"])), provenance, ""]
         args.markdown.write_text("\n".join(text))
         print(f"markdown written to {args.markdown}")
     return 0
+
+
+def _profile_line(profile: dict) -> str:
+    """One sentence with a run's profile and the values it used."""
+    res = profile.get("resolution") or "each scene's own"
+    frames = profile.get("frames") or "all"
+    target = profile.get("reference_target") or 0
+    refs = (f"to a median relative standard error of {target:g}, at most {profile.get('reference_spp')} spp"
+            if target else f"{profile.get('reference_spp') or 'the renderer default'} spp")
+    timing = ", ".join(profile.get("timing") or []) or "none"
+    return (f"Profile `{profile.get('name')}` with the values used: resolution {res}, frames per scene {frames}, "
+            f"seeds {', '.join(map(str, profile.get('seeds', [])))}, references {refs}, "
+            f"{profile.get('repeats')} timed calls per frame, timings at {timing} on `{profile.get('timing_scene')}`.")
 
 
 def cmd_plugins(registry, args) -> int:
@@ -187,18 +249,52 @@ def cmd_render(registry, args) -> int:
     from tqdm.auto import tqdm
 
     _cluster_options(args)
-    store = RenderStore(registry, _cache(args), resolution=args.resolution)
+    profile = get_profile(args.profile).with_overrides(resolution=args.resolution, frames=args.frames,
+                                                       reference_spp=args.spp, reference_target=args.reference_target)
+    store = RenderStore(registry, _cache(args), resolution=profile.resolution)
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
-    work = [_what_to_render(registry, store, spec, args) for spec in specs]
+    work = [_what_to_render(registry, spec, args, profile) for spec in specs]
+    target = profile.reference_target
     if args.executor == "dask":
-        return _render_on_cluster(registry, args, store, work)
+        return _render_on_cluster(registry, args, store, work, target)
     for spec, rname, spp, frames in work:
-        width, height = store.resolution_of(spec)
-        with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {spp} spp)", unit="spp",
-                  disable=not sys.stderr.isatty()) as bar:
-            for t in range(frames):
-                store.reference(spec.name, rname, t, spp=spp, chunk=args.chunk, progress=bar.update)
-        print(f"{spec.name}: {frames} reference frame(s) at {spp} spp, {width}x{height}, in the cache")
+        with tqdm(total=frames * max(spp, 1), desc=f"{spec.name} ({rname}, {_reference_goal(spp, target)})",
+                  unit="spp", disable=not sys.stderr.isatty()) as bar:
+            records = [reference_record(store, spec.name, rname, t, spp=spp, target=target, chunk=args.chunk,
+                                        progress=bar.update) for t in range(frames)]
+        _print_references(store, spec, spp, target, records)
+    return 0
+
+
+def _reference_goal(spp: int, target: float) -> str:
+    return f"{spp} spp" if not target else f"{target:g} median relative error, at most {spp} spp"
+
+
+def _print_references(store, spec, spp: int, target: float, records) -> None:
+    width, height = store.resolution_of(spec)
+    done = ", ".join(f"{r.spp}/{r.error:.3g}" for r in records)
+    print(f"{spec.name}: {len(records)} reference frame(s) at {_reference_goal(spp, target)}, {width}x{height}, in "
+          f"the cache (samples per pixel / median relative standard error of each: {done})")
+
+
+def cmd_profiles(registry, args) -> int:
+    """List the run profiles: each one's settings (options of ``run`` override them)."""
+    table = [p.as_dict() for p in PROFILES.values()]
+    if args.format == "json":
+        print(json.dumps(table, indent=2))
+        return 0
+    def cell(value) -> str:
+        if value is None:
+            return "-"
+        if isinstance(value, list):
+            return ",".join(map(str, value)) if value else "none"
+        return str(value)
+
+    rows = pd.DataFrame([{k: cell(v) for k, v in p.items() if k != "description"} for p in table])
+    print(rows.to_string(index=False))
+    print()
+    for p in table:
+        print(f"{p['name']}: {p['description']}")
     return 0
 
 
@@ -216,7 +312,7 @@ def cmd_export(registry, args) -> int:
     return 0
 
 
-def _what_to_render(registry, store, spec, args) -> tuple:
+def _what_to_render(registry, spec, args, profile) -> tuple:
     """(scene spec, renderer, reference spp, frames) of one scene of ``denoise-bench render``."""
     rname = args.renderer or choose_renderer(registry, spec, args.task)
     if rname is None:
@@ -224,12 +320,14 @@ def _what_to_render(registry, store, spec, args) -> tuple:
     rspec = registry.get("renderer", rname)
     if not rspec.references:
         raise ValueError(f"renderer {rname!r} makes no references")
-    spp = args.spp if args.spp is not None else rspec.reference_spp
-    frames = spec.frames if args.frames is None else min(spec.frames, args.frames)
+    spp = rspec.reference_spp  # analytic references stay analytic unless --spp says otherwise
+    if args.spp is not None or (rspec.reference_spp and profile.reference_spp is not None):
+        spp = profile.reference_spp
+    frames = spec.frames if profile.frames is None else min(spec.frames, profile.frames)
     return spec, rname, spp, frames
 
 
-def _render_on_cluster(registry, args, store, work) -> int:
+def _render_on_cluster(registry, args, store, work, target: float) -> int:
     """Every chunk of every reference as a task; one progress bar over all of them."""
     import threading
 
@@ -246,13 +344,11 @@ def _render_on_cluster(registry, args, store, work) -> int:
             with lock:
                 bar.update(n)
 
-        requests = [(spec, rname, spp, frames, [renders.reference(spec.name, rname, t, spp=spp, progress=tick)
-                                                for t in range(frames)]) for spec, rname, spp, frames in work]
-        for spec, _, spp, frames, futures in requests:
-            for future in futures:
-                future.result()
-            width, height = store.resolution_of(spec)
-            print(f"{spec.name}: {frames} reference frame(s) at {spp} spp, {width}x{height}, in the cache")
+        requests = [(spec, spp, [renders.reference_record(spec.name, rname, t, spp=spp, target=target,
+                                                          progress=tick) for t in range(frames)])
+                    for spec, rname, spp, frames in work]
+        for spec, spp, futures in requests:
+            _print_references(store, spec, spp, target, [future.result() for future in futures])
     return 0
 
 
@@ -266,7 +362,7 @@ def cmd_bench(registry, args) -> int:
         result = bench_filters(
             registry, store, executor, args.filters, peers=peers, scene=args.scene, renderer=args.renderer,
             task=args.task, resolutions=args.resolution, backend=args.backend, repeats=args.repeats,
-            params=_grouped(args.param), presets=dict(args.preset),
+            params=_grouped(args.param), presets=dict(args.preset), error=args.error,
         )
     print(f"scene {args.scene}, backend {args.backend}, {numba.get_num_threads()} threads, {args.executor} "
           f"executor, {args.repeats} timed calls per frame (x_vs_PEER = peer ms / filter ms)")

@@ -11,7 +11,9 @@ from pathlib import Path
 
 from harness.cache import default_cache_dir
 from harness.executors import DASK_MISSING, DEFAULT_TIMEOUT_S, EXECUTOR_NAMES, EXECUTORS
-from harness.plan import BACKEND_CHOICES
+from harness.plan import BACKEND_CHOICES, EMITTER_CHOICES
+from harness.profiles import DEFAULT_PROFILE, PROFILES
+from harness.rows import REAL_RESOLUTIONS
 from harness.specs import TASKS
 
 DEFAULT_OUT = Path("out") / "latest"
@@ -122,6 +124,29 @@ def backends(value: str) -> list[str]:
     return items
 
 
+def fraction(value: str) -> float:
+    """A number in [0, 1)."""
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number, got {value!r}") from None
+    if not 0 <= number < 1:
+        raise argparse.ArgumentTypeError(f"must be in [0, 1), got {value!r}")
+    return number
+
+
+def timing_resolutions(value: str) -> tuple:
+    """``none`` or real resolutions among :data:`harness.rows.REAL_RESOLUTIONS`, comma-separated."""
+    if value.strip().lower() == "none":
+        return ()
+    chosen = resolutions(value)
+    allowed = [f"{w}x{h}" for w, h in REAL_RESOLUTIONS]
+    bad = [f"{w}x{h}" for w, h in chosen if (w, h) not in REAL_RESOLUTIONS]
+    if bad:
+        raise argparse.ArgumentTypeError(f"filters are timed at {', '.join(allowed)} (or none), not {', '.join(bad)}")
+    return tuple(dict.fromkeys(chosen))
+
+
 def executor_name(allowed=EXECUTOR_NAMES):
     """An executor name among ``allowed``; ``dask`` where it is not installed says how to get it."""
 
@@ -140,6 +165,17 @@ def out_dir(value: str) -> Path:
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
     return path
+
+
+def _add_profile(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--profile", choices=sorted(PROFILES), default=DEFAULT_PROFILE,
+                   help=f"defaults of the run (default {DEFAULT_PROFILE}; 'denoise-bench profiles' lists them); "
+                        "options given here override them")
+
+
+def _add_rank_by(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--rank-by", default=None, metavar="METRIC",
+                   help="the metric the leaderboard ranks by (default: display_rmse where scored)")
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -188,6 +224,7 @@ def build_parser() -> Parser:
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
 
     run = sub.add_parser("run", help="render the scenes, run every filter, score and time them")
+    _add_profile(run)
     _add_selection(run)
     run.add_argument("--task", choices=[*TASKS, "all"], default="all",
                      help="denoise, antialias or all (default: all; the leaderboard is per task)")
@@ -198,14 +235,28 @@ def build_parser() -> Parser:
                      help="cpu, cuda, auto (cuda where a GPU is present) or all; comma-separated")
     run.add_argument("--spp", type=integers(1), default=[1], metavar="N",
                      help="samples per pixel of the noisy input (list)")
-    run.add_argument("--seeds", type=integers(0), default=[0], metavar="S", help="seeds of the noisy input (list)")
+    run.add_argument("--seeds", type=integers(0), default=None, metavar="S",
+                     help="seeds of the noisy input (list; default: the profile's)")
     run.add_argument("--reference-spp", type=integer(1), default=None,
-                     help="samples per pixel of references (default: the renderer's)")
+                     help="samples per pixel of references, the cap with a target (default: the profile's, else "
+                          "the renderer's)")
+    run.add_argument("--reference-target", type=fraction, default=None, metavar="E",
+                     help="render references until their median relative standard error is E (0: exactly "
+                          "--reference-spp; default: the profile's)")
+    run.add_argument("--timing-at", type=timing_resolutions, default=None, metavar="WxH,...",
+                     help="real resolutions every filter is also timed at: "
+                          f"{','.join(f'{w}x{h}' for w, h in REAL_RESOLUTIONS)} or none (default: the profile's)")
+    run.add_argument("--timing-scene", default=None, metavar="NAME",
+                     help="the scene of those timings (default: the profile's, where selected)")
+    run.add_argument("--emitters", choices=EMITTER_CHOICES, default="exclude",
+                     help="pixels whose first hit is an emitter in the error metrics (default: exclude)")
+    _add_rank_by(run)
     run.add_argument("--param", type=param, action="append", default=[], metavar="FILTER.NAME=VALUE",
                      help="set a filter parameter (JSON value); repeatable")
     run.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET",
                      help="use a filter's named parameter preset; repeatable")
-    run.add_argument("--repeats", type=integer(1), default=3, help="timed calls per frame (default 3)")
+    run.add_argument("--repeats", type=integer(1), default=None,
+                     help="timed calls per frame (default: the profile's)")
     run.add_argument("--out", type=out_dir, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
     run.add_argument("--csv", action="store_true", help="also write results.csv")
     run.add_argument("--pictures", action="store_true", help="write PNGs of every filter's first frame")
@@ -226,17 +277,26 @@ def build_parser() -> Parser:
 
     show = sub.add_parser("show", help="summary table and leaderboard of a stored run")
     show.add_argument("dir", type=Path)
+    _add_rank_by(show)
     show.add_argument("--all", action="store_true", help="print every row, not the summary")
     show.add_argument("--markdown", type=Path, default=None, metavar="FILE",
                       help="also write the summary and leaderboard as markdown to FILE")
     _add_common(show)
 
+    profiles = sub.add_parser("profiles", help="list the run profiles (--profile) and their settings")
+    profiles.add_argument("--format", choices=["table", "json"], default="table")
+    _add_common(profiles)
+
     render = sub.add_parser("render", help="render references into the cache (chunked, resumable)")
+    _add_profile(render)
     _add_selection(render)
     render.add_argument("--task", choices=list(TASKS), default="denoise",
                         help="whose references: denoise (default) or antialias")
     render.add_argument("--spp", type=integer(1), default=None,
-                        help="reference samples per pixel (default: the renderer's)")
+                        help="reference samples per pixel, the cap with a target (default: the profile's, else the "
+                             "renderer's)")
+    render.add_argument("--reference-target", type=fraction, default=None, metavar="E",
+                        help="stop at this median relative standard error (default: the profile's)")
     render.add_argument("--chunk", type=integer(1), default=64, help="samples per chunk between checkpoints")
     render.add_argument("--executor", type=executor_name(("inline", "dask")), default="inline",
                         metavar="{inline,dask}",
@@ -266,6 +326,9 @@ def build_parser() -> Parser:
     bench.add_argument("--resolution", type=resolutions, default=[(1280, 720), (1920, 1080)], metavar="WxH,...")
     bench.add_argument("--backend", choices=["cpu", "cuda"], default="cpu")
     bench.add_argument("--repeats", type=integer(1), default=10)
+    bench.add_argument("--no-error", dest="error", action="store_false",
+                       help="time only: no reference and no rmse column (the raster renderer's 8x8 SSAA "
+                            "reference needs about 6 GB at 1280x720, 13 GB at 1920x1080)")
     bench.add_argument("--param", type=param, action="append", default=[], metavar="FILTER.NAME=VALUE")
     bench.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET")
     bench.add_argument("--cache-dir", type=Path, default=None)

@@ -14,7 +14,7 @@ from .weights import DEFAULT_LAYERS
 
 VERSION = "1.0"
 PARAMS = {
-    "layers": Param(DEFAULT_LAYERS, min=1, max=16, doc="hidden 3x3x32 conv + ReLU layers (shipped: 2, 4, 6)"),
+    "layers": Param(DEFAULT_LAYERS, min=1, max=16, doc="hidden 3x3x32 conv + ReLU layers (shipped: 2)"),
     "weights": Param(None, type="str", doc="a weights file; null for the shipped weights of `layers`"),
 }
 
@@ -29,6 +29,14 @@ def train_aa_rnn(seed: int = 0, output=None, quick: bool = False):
     return train(seed=seed, output=output, quick=quick)
 
 
+#: stress cases this filter fails, with the measured reason (run as strict expected failures)
+STRESS_EXEMPT = {
+    "color-flat-huge": ("the network works on tone-mapped x / (1 + x) in float32, which saturates above about "
+                        "1e6 (U_MAX): a flat 1e30 frame comes out as 1.05e6 (measured); not yet rescaled by a "
+                        "power of two"),
+}
+
+
 @hookimpl
 def register_filters():
     return [
@@ -41,6 +49,7 @@ def register_filters():
             backends=BACKENDS,
             params=PARAMS,
             tasks={"antialias"},
+            stress_exempt=STRESS_EXEMPT,
             description="recurrent G-buffer CNN anti-aliasing (warped previous output + colour, normals, depth)",
             trainer=train_aa_rnn,
         )

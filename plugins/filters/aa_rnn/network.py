@@ -77,7 +77,10 @@ def prepare(color: torch.Tensor, normal: torch.Tensor, depth: torch.Tensor, moti
     dict
         ``u`` (N, 3, H, W) tone-mapped colour, ``normal``, ``z`` (N, 1, H, W) inverse depth and
         ``flow`` (N, 2, H, W): where the pixel centre's surface was in the previous output.
+        Normals that are not finite become 0 and all are clamped to [-1, 1].
     """
+    # unit normals lie in [-1, 1]; non-finite or out-of-range guide values must not reach the convolutions
+    normal = torch.clamp(torch.nan_to_num(normal, nan=0.0, posinf=0.0, neginf=0.0), -1.0, 1.0)
     surface = torch.isfinite(depth) & (depth > 0)
     z = torch.where(surface, 1.0 / torch.where(surface, depth, torch.ones_like(depth)), torch.zeros_like(depth))
     flow = motion - jitter[:, :, None, None] * surface.to(motion.dtype)

@@ -23,7 +23,18 @@ FORMAT = "aa_rnn-weights"
 FORMAT_VERSION = 1
 #: the shipped weights, one file per depth; :data:`DEFAULT_LAYERS` is the filter's default
 WEIGHTS_DIR = Path(__file__).with_name("weights")
-DEFAULT_LAYERS = 4
+DEFAULT_LAYERS = 2
+#: the shipped weights files, checked by the tests: ``file`` is the SHA-256 of the file's bytes
+#: (``sha256sum``; the zip entries carry a time stamp, so a retrained file has other bytes),
+#: ``arrays`` the :func:`arrays_digest` that retraining with the same seed on the same machine and
+#: software reproduces, ``training_data`` the digest of the rendered training sequences
+SHIPPED = {
+    2: {
+        "file": "8e3ab43761750c07d19d55d17528ecd0f086a565f83dc7c99344a5908e95507c",
+        "arrays": "ca08ce087828a7a4987dd27147c1e262dd8fbd6187641b5bb6a87a817a6a929b",
+        "training_data": "449525c67df7bd651e5f4aba91419815a99592f4dbc2d3b6f2bbcca404e86423",
+    },
+}
 
 
 class WeightsError(ValueError):

@@ -6,6 +6,8 @@ Illumination Filtering", HPG 2010.
 
 from __future__ import annotations
 
+import copy
+
 from numba import get_num_threads, set_num_threads
 
 from harness import load_backend
@@ -48,6 +50,15 @@ class EAWFilter:
 
     def reset(self) -> None:
         """Nothing to forget: the filter keeps no history (buffers are only scratch space)."""
+
+    def __deepcopy__(self, memo):
+        """A deep copy that shares the backend module (modules cannot be copied)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        for name, value in self.__dict__.items():
+            if name != "_kernels":
+                setattr(new, name, copy.deepcopy(value, memo))
+        return new
 
     def __call__(self, frame, sampler=None):
         threads = get_num_threads()

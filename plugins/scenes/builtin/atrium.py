@@ -5,6 +5,11 @@ court is open to the sky and lit by a sun at about 60 degrees elevation, so the 
 upper arcade get hard shadows while the aisles behind the columns are lit only indirectly (dark
 regions). Striped cloth banners hang from the upper arcade (thin, folded geometry) and potted
 plants with thin leaves stand along the court.
+
+The sequence (32 frames) is a camera fly-through along the court, turning towards the far
+arcade, while a striped ball rolls across the sunlit floor (a moving object with a moving hard
+shadow, the case where temporal filters lag) and one banner swings on its rail (a thin moving
+shadow on the columns and the floor).
 """
 
 from __future__ import annotations
@@ -16,7 +21,8 @@ from harness import CameraPath, Material, Scene, SceneObject
 from . import textures
 from .assemble import suite_scene
 from .lighting import sky, sun
-from .primitives import arch_panel, box, cloth, cylinder, merge, plant, rotate, to_polydata, translate
+from .motion import along, rolling, swinging
+from .primitives import arch_panel, box, cloth, cylinder, merge, plant, rotate, sphere, to_polydata, translate
 
 LENGTH = 16.0  # court length along x (m)
 COURT = 4.0  # half-width of the court (colonnade line at z = +-COURT)
@@ -24,7 +30,11 @@ AISLE = 3.0  # aisle depth behind the colonnades
 BAY = 2.0  # column spacing
 HEIGHT = 8.5  # top of the aisle roof
 
-STONE, FLOOR, MARBLE, BANNER_RED, BANNER_BLUE, LEAVES, POT, SOIL = range(8)
+FRAMES = 32
+BALL_RADIUS = 0.45
+SWINGING_BANNER = 3  # index in _banners(): x = 11 on the +z side
+
+STONE, FLOOR, MARBLE, BANNER_RED, BANNER_BLUE, LEAVES, POT, SOIL, BALL = range(9)
 
 
 def _materials() -> list[Material]:
@@ -38,6 +48,8 @@ def _materials() -> list[Material]:
         Material("leaves", albedo=(0.12, 0.38, 0.07)),
         Material("terracotta", albedo=(0.6, 0.3, 0.17)),
         Material("soil", albedo=(0.12, 0.08, 0.05)),
+        Material("ball", kind="plastic", albedo=(1.0, 1.0, 1.0), roughness=0.3,
+                 texture=textures.stripes(64, 4, a=(0.75, 0.6, 0.1), b=(0.1, 0.25, 0.6))),
     ]
 
 
@@ -92,15 +104,15 @@ def _plants(rng: np.random.Generator) -> tuple[list, list, list]:
 
 SPEC = {
     "name": "atrium",
-    "tags": frozenset({"static", "sun", "sky", "hard_shadows", "indirect", "foliage", "cloth", "textured",
-                       "dark_regions"}),
-    "frames": 1,
+    "tags": frozenset({"dynamic", "moving_shadow", "sun", "sky", "hard_shadows", "indirect", "foliage", "cloth",
+                       "textured", "dark_regions"}),
+    "frames": FRAMES,
     "resolution": (192, 108),
 }
 
 
 def build() -> Scene:
-    """Build the ``atrium`` scene (static, one frame)."""
+    """Build the ``atrium`` scene (32 frames: fly-through, rolling ball, swinging banner)."""
     rng = np.random.default_rng(7)
     stone, marble = [], []
     for sign in (-1.0, 1.0):
@@ -112,15 +124,25 @@ def build() -> Scene:
     stone.append(box((LENGTH, 0.0, -width), (LENGTH + 0.3, HEIGHT + 1.0, width), STONE, uv_density=0.5))
     floor = box((-0.3, -0.2, -width), (LENGTH + 0.3, 0.0, width), FLOOR, uv_density=0.5)
     pots, soil, leaves = _plants(rng)
+    banners = _banners()
+    swing = banners.pop(SWINGING_BANNER)
+    rail = (11.0, 8.1, COURT - 0.45)  # where the swinging banner hangs from
+    ball = sphere(BALL_RADIUS, BALL, rings=12, segments=24)
     objects = [
         SceneObject("floor", to_polydata(floor)),
         SceneObject("stonework", to_polydata(stone)),
         SceneObject("columns", to_polydata(marble)),
-        SceneObject("banners", to_polydata(_banners())),
+        SceneObject("banners", to_polydata(banners)),
         SceneObject("pots", to_polydata(merge(pots + soil))),
         SceneObject("plants", to_polydata(leaves)),
+        SceneObject("ball", to_polydata(ball),
+                    transforms=rolling((11.6, BALL_RADIUS, -3.0), (10.6, BALL_RADIUS, 2.6), BALL_RADIUS, FRAMES)),
+        SceneObject("swinging_banner", to_polydata(swing),
+                    transforms=swinging(rail, (1.0, 0.0, 0.0), amplitude=14.0, periods=1.0, frames=FRAMES)),
     ]
-    camera = CameraPath(positions=[(0.7, 1.7, -1.2)], targets=[(LENGTH, 4.2, 1.0)], fov=62.0, near=0.05, far=100.0)
+    eye = along([(0.7, 1.7, -1.2), (3.5, 1.9, -0.6), (6.5, 2.3, 0.6)], FRAMES)
+    target = along([(LENGTH, 4.2, 1.0), (LENGTH, 3.0, -0.5), (13.0, 1.2, -1.5)], FRAMES)
+    camera = CameraPath(positions=eye, targets=target, fov=62.0, near=0.05, far=100.0)
     return suite_scene(
         SPEC,
         objects=objects,

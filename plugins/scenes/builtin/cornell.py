@@ -1,6 +1,9 @@
 """The classic Cornell box: white floor, ceiling and back wall, red left and green right wall,
 a tall and a short block, and a square area light just below the ceiling (soft shadows,
-colour bleeding). Dimensions follow the measured box (5.55 m wide) scaled to metres."""
+colour bleeding). Dimensions follow the measured box (5.55 m wide) scaled to metres.
+
+The sequence (8 frames, static camera) slides and turns the short block towards the middle of
+the floor: its soft shadow and the light it bounces onto the walls move with it."""
 
 from __future__ import annotations
 
@@ -19,16 +22,18 @@ def _block(size, angle, position, material):
     part = box(-half, half + np.array([0, size[1], 0]), material)
     return part.transformed(translate(position) @ rotate((0, 1, 0), angle))
 
+FRAMES = 8
+
 SPEC = {
     "name": "cornell",
-    "tags": frozenset({"static", "emissive", "soft_shadows", "indirect"}),
-    "frames": 1,
+    "tags": frozenset({"dynamic", "moving_shadow", "emissive", "soft_shadows", "indirect"}),
+    "frames": FRAMES,
     "resolution": (128, 128),
 }
 
 
 def build() -> Scene:
-    """Build the ``cornell`` scene (static, one frame)."""
+    """Build the ``cornell`` scene (8 frames: the short block slides and turns)."""
     materials = [
         Material("white", albedo=(0.73, 0.73, 0.73)),
         Material("red", albedo=(0.63, 0.065, 0.05)),
@@ -46,7 +51,10 @@ def build() -> Scene:
     ])
     objects = [SceneObject("room", to_polydata(room))]
     objects.append(SceneObject("tall_block", to_polydata(_block((1.66, 3.3, 1.66), 17.0, (1.85, 0.0, 2.2), white))))
-    objects.append(SceneObject("short_block", to_polydata(_block((1.66, 1.65, 1.66), -17.0, (3.7, 0.0, 3.6), white))))
+    short = to_polydata(_block((1.66, 1.65, 1.66), 0.0, (0.0, 0.0, 0.0), white))
+    path = zip(np.linspace(3.7, 3.1, FRAMES), np.linspace(3.6, 3.1, FRAMES), np.linspace(-17.0, 8.0, FRAMES))
+    moves = np.stack([translate((x, 0.0, z)) @ rotate((0, 1, 0), a) for x, z, a in path])
+    objects.append(SceneObject("short_block", short, transforms=moves))
     s = 1.3
     lamp = grid((W / 2 - s / 2, W - 0.01, W / 2 - s / 2), (s, 0, 0), (0, 0, s), light)
     objects.append(SceneObject("light", to_polydata(lamp)))

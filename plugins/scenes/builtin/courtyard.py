@@ -4,6 +4,11 @@ Brick walls enclose a tiled court whose floor is a glossy plastic (it reflects t
 tables). A tree with a dense canopy of small leaves and a vine-covered pergola throw dappled,
 slightly soft shadows (sun of 1 degree radius); a grid of tables with chairs carries plates,
 cups and bottles (many small objects, thin chair legs); a chrome ball sits on a fountain.
+
+The sequence (32 frames) is a camera fly-through from the entrance towards the tree, while a
+serving trolley rolls down the lane between the tables towards the camera (a moving object with
+a moving shadow) and the tree's crown sways in the wind (dappled shadows that move over the
+floor and the tables: the foliage case of temporal filters).
 """
 
 from __future__ import annotations
@@ -15,6 +20,7 @@ from harness import CameraPath, Material, Scene, SceneObject
 from . import textures
 from .assemble import suite_scene
 from .lighting import sky, sun
+from .motion import along, swinging
 from .primitives import (
     arch_panel,
     box,
@@ -28,10 +34,15 @@ from .primitives import (
     translate,
 )
 
+FRAMES = 32
+TREE = (-4.8, 0.0, -3.8)  # foot of the trunk
+TRUNK_HEIGHT = 3.2
+
 SPEC = {
     "name": "courtyard",
-    "tags": frozenset({"static", "sun", "sky", "foliage", "glossy", "textured", "many_objects", "indirect"}),
-    "frames": 1,
+    "tags": frozenset({"dynamic", "moving_shadow", "sun", "sky", "foliage", "glossy", "textured", "many_objects",
+                       "indirect"}),
+    "frames": FRAMES,
     "resolution": (192, 108),
 }
 
@@ -99,8 +110,19 @@ def _table_set(rng: np.random.Generator, at: np.ndarray) -> tuple[list, list, li
     return wood, cloth, ceramic, glass
 
 
+def _trolley() -> list:
+    """A serving trolley (two shelves on four legs) centred on the origin, standing on y = 0."""
+    parts = [box((-0.3, 0.8, -0.45), (0.3, 0.84, 0.45), WOOD), box((-0.3, 0.3, -0.45), (0.3, 0.33, 0.45), WOOD)]
+    for x in (-0.27, 0.27):
+        for z in (-0.42, 0.42):
+            parts.append(box((x - 0.02, 0.0, z - 0.02), (x + 0.02, 0.8, z + 0.02), WOOD))
+    parts.append(cylinder(0.035, 0.22, GLASS_GREEN, segments=10).transformed(translate((0.1, 0.84, -0.2))))
+    parts.append(cylinder(0.12, 0.02, CERAMIC, segments=14).transformed(translate((-0.1, 0.84, 0.15))))
+    return parts
+
+
 def build() -> Scene:
-    """Build the ``courtyard`` scene (static, one frame)."""
+    """Build the ``courtyard`` scene (32 frames: fly-through, rolling trolley, swaying tree)."""
     rng = np.random.default_rng(11)
     floor = box((-HALF, -0.2, -HALF), (HALF, 0.0, HALF + 3.0), FLOOR, uv_density=0.5)
     wood, cloth, ceramic, glass = [], [], [], []
@@ -112,7 +134,7 @@ def build() -> Scene:
             ceramic += ce
             glass += g
     # a tree in the back left corner and a vine pergola over the right side
-    trunk = cylinder(0.22, 3.2, BARK, segments=10, radius_top=0.12).transformed(translate((-4.8, 0.0, -3.8)))
+    trunk = cylinder(0.22, TRUNK_HEIGHT, BARK, segments=10, radius_top=0.12).transformed(translate(TREE))
     crown = canopy(rng, (-4.8, 4.0, -3.8), (2.2, 1.4, 2.2), LEAVES, n_leaves=1400, leaf_size=0.28)
     pergola = []
     for x in (3.0, 6.5):
@@ -137,13 +159,20 @@ def build() -> Scene:
         SceneObject("furniture", to_polydata(wood + pergola)),
         SceneObject("tablecloths", to_polydata(cloth)),
         SceneObject("tableware", to_polydata(ceramic + glass)),
-        SceneObject("tree", to_polydata([trunk, crown])),
+        SceneObject("trunk", to_polydata(trunk)),
+        SceneObject("crown", to_polydata(crown),
+                    transforms=swinging((TREE[0], TRUNK_HEIGHT, TREE[2]), (1.0, 0.0, 0.6), amplitude=4.0,
+                                        periods=1.5, frames=FRAMES)),
         SceneObject("vines", to_polydata(vines)),
         SceneObject("fountain", to_polydata([p.transformed(at_fountain) for p in fountain])),
         SceneObject("chrome_ball", to_polydata(ball.transformed(at_fountain))),
         SceneObject("plants", to_polydata(pots + greens)),
+        SceneObject("trolley", to_polydata(_trolley()),
+                    transforms=np.stack([translate((-1.75, 0.0, z)) for z in np.linspace(-3.5, 2.6, FRAMES)])),
     ]
-    camera = CameraPath(positions=[(2.0, 3.4, 9.5)], targets=[(-0.5, 0.6, -1.0)], fov=55.0, near=0.05, far=100.0)
+    eye = along([(3.5, 3.6, 9.8), (1.5, 2.9, 8.2), (-1.0, 2.3, 6.8)], FRAMES)
+    target = along([(-0.5, 0.6, -1.0), (-2.0, 1.0, -2.0), (-4.0, 1.8, -3.0)], FRAMES)
+    camera = CameraPath(positions=eye, targets=target, fov=55.0, near=0.05, far=100.0)
     return suite_scene(
         SPEC,
         objects=objects,

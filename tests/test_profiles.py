@@ -1,0 +1,86 @@
+"""Run profiles (quick, paper): data, listing, overrides, the manifest, real-resolution timings in a run."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from harness import load_plugins
+from harness.cache import Cache
+from harness.plan import make_plan, timing_group
+from harness.profiles import DEFAULT_PROFILE, PROFILES, get_profile
+from harness.renders import RenderStore
+from tests.test_run import bench
+
+
+def test_profiles_are_data_with_the_documented_values():
+    assert DEFAULT_PROFILE == "quick" and set(PROFILES) == {"quick", "paper"}
+    paper = get_profile("paper")
+    assert paper.resolution == (1280, 720) and paper.frames is None and len(paper.seeds) >= 3
+    assert 0 < paper.reference_target <= 0.01 and paper.reference_spp >= 4096
+    quick = get_profile("quick")
+    assert quick.resolution is None and quick.frames and len(quick.seeds) >= 2
+    assert quick.timing == paper.timing == ((1280, 720), (1920, 1080))
+    assert quick.with_overrides(frames=None, seeds=(4,)).seeds == (4,)
+    assert quick.with_overrides(frames=None).frames == quick.frames
+    with pytest.raises(KeyError, match="profiles: \\['paper', 'quick'\\]"):
+        get_profile("slow")
+
+
+def test_profiles_command_lists_them():
+    out = bench(["profiles"])
+    assert "quick" in out.stdout and "paper" in out.stdout and "1280x720" in out.stdout
+    table = json.loads(bench(["profiles", "--format", "json"]).stdout)
+    assert [p["name"] for p in table] == ["quick", "paper"]
+
+
+def test_the_timing_group_is_the_profile_scene_or_the_first_one():
+    reg = load_plugins()
+    store = RenderStore(reg, Cache(enabled=False), resolution=(16, 12))
+    scenes = [reg.scenes["synthetic-edges"], reg.scenes["synthetic-moving"]]
+    plan = make_plan(reg, store, scenes, ["passthrough", "gaussian"], ["rmse"], spp=(2, 1), seeds=(3, 4),
+                     timing_resolutions=((1280, 720),), timing_scene="synthetic-moving")
+    group = timing_group(plan, "denoise", "synthetic-moving")
+    assert (group.scene, group.spp, group.seed) == ("synthetic-moving", 1, 3)
+    timed = [j for j in plan.jobs if j.timing]
+    assert {j.filter for j in timed} == {"passthrough", "gaussian"} and all(j.timing == ((1280, 720),) for j in timed)
+    assert all(j.scene == "synthetic-moving" and j.spp == 1 and j.seed == 3 for j in timed)
+    other = make_plan(reg, store, scenes, ["passthrough"], ["rmse"], timing_resolutions=((1280, 720),),
+                      timing_scene="atrium")
+    assert [j.scene for j in other.jobs if j.timing] == ["synthetic-edges"]
+    with pytest.raises(ValueError, match="filters are timed at"):
+        make_plan(reg, store, scenes, ["passthrough"], ["rmse"], timing_resolutions=((640, 480),))
+
+
+def test_quick_run_has_seeds_intervals_and_real_resolution_times(tmp_path):
+    out = bench(["run", "--scenes", "synthetic-moving,synthetic-edges", "--frames", "3", "--filters",
+                 "passthrough,gaussian", "--quiet", "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
+    manifest = json.loads((tmp_path / "o" / "manifest.json").read_text())
+    profile = manifest["settings"]["profile"]
+    assert profile["name"] == "quick" and profile["frames"] == 3 and profile["seeds"] == [0, 1, 2]
+    assert manifest["seeds"] == [0, 1, 2]
+    df = pd.read_parquet(tmp_path / "o" / "results.parquet")
+    timed = df[df.ms_1280x720.notna()]
+    assert set(timed.scene) == {"synthetic-moving"} and set(timed.seed) == {0}
+    assert set(timed["filter"]) == {"passthrough", "gaussian"} and (timed.ms_1920x1080 > 0).all()
+    assert df.ms_1280x720.isna().sum() == len(df) - len(timed)
+    assert "ranked by display_rmse" in out.stdout and "ms_1280x720" in out.stdout and "vs next" in out.stdout
+    board = out.stdout.split("Leaderboard")[1]
+    assert "[" in board  # intervals
+    assert set(df.reference_spp) == {0} and (df.reference_noise == 0).all()  # analytic references
+
+
+def test_paper_profile_with_overrides_renders_references_to_a_target(tmp_path):
+    bench(["run", "--profile", "paper", "--scenes", "synthetic-moving", "--filters", "passthrough", "--resolution",
+           "24x16", "--frames", "2", "--seeds", "0,1", "--reference-spp", "64", "--timing-at", "none", "--quiet",
+           "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])
+    manifest = json.loads((tmp_path / "o" / "manifest.json").read_text())
+    profile = manifest["settings"]["profile"]
+    assert (profile["name"], profile["resolution"], profile["reference_target"]) == ("paper", "24x16", 0.01)
+    quality = manifest["reference_quality"]
+    assert len(quality) == 2 and all(q["spp"] == 64 and q["median_relative_error"] > 0.01 for q in quality.values())
+    df = pd.read_parquet(tmp_path / "o" / "results.parquet")
+    assert (df.reference_spp == 64).all() and (df.reference_error > 0.01).all()
+    assert np.isfinite(df.reference_noise).all() and (df.reference_noise > 0).all()
+    assert df.ms_1280x720.isna().all()
