@@ -120,8 +120,11 @@ def test_case_selection_by_name_group_and_pattern():
     assert {c.name for c in select_cases(["guide-normal-*"])} == {
         "guide-normal-nan", "guide-normal-inf", "guide-normal-neginf", "guide-normal-max", "guide-normal-zero"}
     assert not any(c.heavy for c in select_cases(heavy=False))
-    with pytest.raises(ValueError, match="no stress case matches 'nope'; groups: colour, guide"):
+    assert select_cases(["light"]) == select_cases(heavy=False) and select_cases(["all"]) == list(CASES.values())
+    with pytest.raises(ValueError, match=r"no stress case matches 'nope' \(.*a group: colour, guide.*'all'\)$"):
         select_cases(["nope"])
+    with pytest.raises(ValueError, match="did you mean shape-4k"):
+        select_cases(["shape-4K"])
 
 
 def test_repaired_frames_hold_only_safe_values():
@@ -296,6 +299,17 @@ def test_parametrize_with_checks_gains_the_applicable_stress_cases():
     assert shape.xfail_reason(exempt) == "measured"
 
 
+def test_the_third_party_example_gets_the_battery_in_its_own_conformance_tests():
+    # examples/third_party_filter/tests (in the suite's testpaths) runs these through the pytest plugin
+    from harness.testing import registry
+
+    spec = registry().get("filter", "median3")
+    assert spec.convex and not spec.stress_exempt
+    ids = {item.id for item in plugin_checks(filters=["median3"])}
+    expected = {f"filter:median3[cpu]-stress:{c.name}" for c in select_cases(["light"]) if c.skip_reason(spec) is None}
+    assert expected <= ids and len(expected) == 24
+
+
 def test_a_stress_check_in_process_raises_naming_the_case():
     class Nan(Copy):
         def __call__(self, frame, sampler=None):
@@ -319,9 +333,49 @@ def test_a_stress_run_is_stored_with_a_manifest_and_shown(tmp_path, capsys):
     manifest = json.loads((tmp_path / "s" / "manifest.json").read_text())
     assert manifest["kind"] == "stress" and manifest["verdicts"] == {"pass": 4, "n/a": 2}
     assert manifest["cases"] == ["color-zero", "guide-normal-nan", "shape-1x1"]
+    assert set(df[df.verdict == "pass"].command) == {
+        f"denoise-bench stress --filters {f} --backend cpu --cases {c}" for f in ("passthrough", "gaussian")
+        for c in ("shape-1x1", "color-zero")}
     assert main(["show", str(tmp_path / "s")]) == 0
     shown = capsys.readouterr().out
     assert "passthrough" in shown and "shape-1x1" in shown and "4 pass" in shown
+
+
+def test_warnings_of_a_case_are_notes_not_output(tmp_path, capfd):
+    class Squares(Copy):
+        def __call__(self, frame, sampler=None):
+            c = frame["color"]
+            return np.minimum(c * c, np.float32(1)).astype(np.float32)  # overflows (and warns) at 1e30
+
+    plugin = types.ModuleType("warning_plugin")
+    plugin.register_filters = hookimpl(lambda: [spec_of(Squares, name="squares")])
+    reg = load_plugins(extra=[plugin], entry_points=False)
+    out = run_stress(reg, InlineExecutor(reg), tmp_path / "s", make_targets(reg, ["squares"], ["cpu"]),
+                     cases=select_cases(["color-flat-huge", "shape-1x1"]))
+    notes = out.table.set_index("case").notes
+    assert notes["color-flat-huge"].startswith("1 warning(s): RuntimeWarning: overflow encountered in multiply")
+    assert notes["shape-1x1"] == "" and "RuntimeWarning" not in capfd.readouterr().err
+
+
+def test_rerun_commands_name_the_changed_parameters_or_the_reproducer(tmp_path):
+    from harness.stress.run import rerun_command
+    from harness.testing import registry
+
+    gaussian, = make_targets(registry(), ["gaussian"], ["cpu"], params={"gaussian": {"sigma": 2.5}})
+    assert rerun_command(gaussian, "shape-1x1") == ("denoise-bench stress --filters gaussian --backend cpu "
+                                                    "--cases shape-1x1 --param gaussian.sigma=2.5")
+    path = str(tmp_path / "my dir" / "gaussian-cpu.npz")
+    assert rerun_command(gaussian, "fuzz", path) == f"denoise-bench stress --replay {path}"
+    assert rerun_command(gaussian, "replay:x.npz", path) == (
+        f"denoise-bench stress --filters gaussian --backend cpu --replay '{path}' --param gaussian.sigma=2.5")
+
+
+def test_the_cli_runs_the_light_battery_by_default(tmp_path, capsys):
+    assert main(["stress", "--filters", "passthrough", "--executor", "inline", "--out", str(tmp_path / "s")]) == 0
+    manifest = json.loads((tmp_path / "s" / "manifest.json").read_text())
+    assert manifest["cases"] == [c.name for c in select_cases(["light"])] and "shape-4k" not in manifest["cases"]
+    err = capsys.readouterr().err.splitlines()  # not a terminal: one line per case
+    assert err[2].startswith("[1/") and err[-1].endswith("passthrough/cpu stress repair-everything: pass")
 
 
 def test_declared_failures_and_stale_declarations_have_their_verdicts(tmp_path):
@@ -394,8 +448,12 @@ def faulty(fake_distribution):
 
 def test_crashes_and_hangs_are_rows_and_the_run_goes_on(tmp_path, faulty):
     out = bench(["stress", "--filters", "segv,hang,passthrough", "--cases", "guide-normal-nan,shape-1x1",
-                 "--timeout", "5", "--quiet", "--out", tmp_path / "s"], env=bench_env(faulty), check=False)
+                 "--timeout", "5", "--out", tmp_path / "s", "--markdown", tmp_path / "md" / "s.md"],
+                env=bench_env(faulty), check=False)
     assert out.returncode == 1, out.stderr
+    assert "[1/5] segv/cpu stress guide-normal-nan: crash (fail): the worker process died" in out.stderr
+    rerun = "rerun: denoise-bench stress --filters hang --backend cpu --cases guide-normal-nan"
+    assert rerun in out.stdout and rerun in (tmp_path / "md" / "s.md").read_text()
     df = pd.read_parquet(tmp_path / "s" / "results.parquet").set_index(["filter", "case"])
     assert df.loc[("segv", "guide-normal-nan"), "status"] == "crash"
     assert "SIGSEGV (segmentation fault)" in df.loc[("segv", "guide-normal-nan"), "message"]
@@ -459,6 +517,8 @@ def test_fuzzing_finds_shrinks_saves_and_replays_a_third_party_failure(tmp_path,
     (["--filters", "nope"], "no filter named 'nope'"),
     (["--filters", "gaussian", "--param", "gaussian.sigma=-1"], "filter 'gaussian': parameter 'sigma'"),
     (["--filters", "gaussian", "--param", "eaw.iterations=2"], "parameters or a preset for filter 'eaw'"),
+    (["--filters", "gaussian", "--workers", "2"], "--scheduler and --workers need --executor dask"),
+    (["--cases", "shape-4K"], "did you mean shape-4k"),
 ])
 def test_bad_stress_options_are_one_line_errors_with_exit_2(args, message, tmp_path, capsys):
     try:
@@ -475,7 +535,7 @@ def test_a_file_that_is_not_a_reproducer_is_a_one_line_error(tmp_path, capsys):
     bad.write_text("not a zip")
     assert main(["stress", "--replay", str(bad), "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err
-    assert "is not a stress reproducer" in err and len(err.strip().splitlines()) == 1
+    assert "bad.npz is not a stress reproducer: not an .npz archive" in err and len(err.strip().splitlines()) == 1
 
 
 def test_reproducers_store_frames_bit_for_bit(tmp_path):

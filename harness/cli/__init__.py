@@ -47,6 +47,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"denoise-bench {args.command}: {message}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"\ndenoise-bench {args.command}: interrupted; stored results are kept (rerun with --resume)",
-              file=sys.stderr)
+        resume = " (rerun with --resume)" if hasattr(args, "resume") else ""
+        print(f"\ndenoise-bench {args.command}: interrupted; stored results are kept{resume}", file=sys.stderr)
         return 130

@@ -11,7 +11,7 @@ import pandas as pd
 
 from harness.bench import DEFAULT_PEERS, bench_filters
 from harness.cache import Cache
-from harness.cli.stress import cmd_stress, show_stress  # noqa: F401 (cmd_stress: the `stress` sub-command)
+from harness.cli.stress import run_stress_command, show_stress
 from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import FolderLock, check_out_dir
@@ -81,6 +81,11 @@ def _executor(registry, args):
     if hasattr(executor, "banner"):
         print(executor.banner(), file=sys.stderr)
     return executor
+
+
+def cmd_stress(registry, args) -> int:
+    """Run filters through the stress battery, fuzz them, or replay a reproducer (:mod:`harness.cli.stress`)."""
+    return run_stress_command(registry, args, lambda: _executor(registry, args))
 
 
 def _progress(args) -> bool:

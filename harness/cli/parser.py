@@ -416,8 +416,9 @@ def _add_stress(sub) -> None:
     stress.add_argument("--filters", type=names, default=None, metavar="NAMES",
                         help="filters to stress, comma-separated (default: every registered filter)")
     stress.add_argument("--cases", type=names, default=None, metavar="NAMES",
-                        help="cases, groups (colour, guide, shape, sequence, policy) or fnmatch patterns, "
-                             "comma-separated (default: every case; none with --fuzz or --replay)")
+                        help="cases, groups (colour, guide, shape, sequence, policy), fnmatch patterns, 'light' "
+                             "or 'all', comma-separated (default: light, every case but the heavy 4K and 1,000-frame "
+                             "ones; none with --fuzz or --replay)")
     stress.add_argument("--fuzz", type=integer(1), default=None, metavar="N",
                         help="generate N examples per filter with Hypothesis; shrink a failure to a reproducer")
     stress.add_argument("--seed", type=integer(0), default=0, help="seed of the fuzzing search (default 0)")
@@ -433,6 +434,7 @@ def _add_stress(sub) -> None:
                         help=f"output folder (default {DEFAULT_STRESS_OUT})")
     stress.add_argument("--markdown", type=Path, default=None, metavar="FILE",
                         help="also write the filter x case table as markdown to FILE")
-    stress.add_argument("--quiet", action="store_true", help="no progress bar")
+    stress.add_argument("--quiet", action="store_true",
+                        help="no progress (a bar on a terminal, else one line per case on standard error)")
     _add_executor(stress, timeout=STRESS_TIMEOUT_S)
     _add_common(stress)

@@ -25,6 +25,7 @@ Single-frame cases run on three frames for temporal filters (the history path is
 
 from __future__ import annotations
 
+import difflib
 import fnmatch
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -366,27 +367,32 @@ GROUPS = ("colour", "guide", "shape", "sequence", "policy")
 
 
 def select_cases(patterns=None, *, heavy: bool = True) -> list[StressCase]:
-    """Cases matching any of ``patterns`` (names, ``fnmatch`` patterns or group names), in battery order.
+    """Cases matching any of ``patterns``, in battery order.
 
     Parameters
     ----------
     patterns : iterable of str, optional
-        None selects every case.
+        Case names, ``fnmatch`` patterns (``"guide-normal-*"``), group names (:data:`GROUPS`),
+        ``light`` (every case but the heavy ones) or ``all``. None selects every case (the
+        heavy ones with ``heavy``).
     heavy : bool
         Include the heavy cases (4K, 1,000 frames) when ``patterns`` is None.
 
     Raises
     ------
     ValueError
-        A pattern that matches no case (the message lists the groups and cases).
+        A pattern that matches no case (one line: the groups, and the closest case names).
     """
     if patterns is None:
         return [c for c in CASES.values() if heavy or not c.heavy]
     chosen = set()
     for pattern in patterns:
-        hits = {n for n, c in CASES.items() if fnmatch.fnmatchcase(n, pattern) or c.group == pattern}
+        hits = {n for n, c in CASES.items() if fnmatch.fnmatchcase(n, pattern) or c.group == pattern
+                or pattern == "all" or (pattern == "light" and not c.heavy)}
         if not hits:
-            raise ValueError(f"no stress case matches {pattern!r}; groups: {', '.join(GROUPS)}; "
-                             f"cases: {', '.join(CASES)}")
+            close = difflib.get_close_matches(pattern, list(CASES), n=3, cutoff=0.5)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise ValueError(f"no stress case matches {pattern!r} (give case names, fnmatch patterns such as "
+                             f"'guide-normal-*', a group: {', '.join(GROUPS)}, 'light' or 'all'){hint}")
         chosen |= hits
     return [c for n, c in CASES.items() if n in chosen]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +54,8 @@ def load_reproducer(path: str | Path) -> tuple[list[Frame], dict]:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no reproducer file {path}")
+    if not zipfile.is_zipfile(path):
+        raise ValueError(f"{path} is not a stress reproducer: not an .npz archive")
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}

@@ -13,6 +13,7 @@ Each case is a :class:`harness.stress.tasks.StressTask` handed to an executor, s
 from __future__ import annotations
 
 import json
+import shlex
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -31,7 +32,7 @@ from harness.results import write_table
 from harness.stress.cases import CASES, StressCase, exemption
 from harness.stress.check import CaseResult
 from harness.stress.fuzz import fuzz
-from harness.stress.reproducer import load_reproducer, save_reproducer
+from harness.stress.reproducer import load_reproducer, replay_command, save_reproducer
 from harness.stress.table import StressRow, counts, make_table, verdict
 from harness.stress.tasks import StressTask, case_result
 
@@ -99,6 +100,26 @@ def make_targets(registry, filters: Sequence[str] | None = None, backends: Seque
     return targets
 
 
+def rerun_command(target: Target, case: str, reproducer: str = "") -> str:
+    """The ``denoise-bench stress`` command line that runs one row of a stress run again.
+
+    A battery case names the filter, backend, case and every parameter that differs from the
+    filter's defaults; a fuzzing failure is replayed from its reproducer file; a replay names the
+    file and the filter it ran on.
+    """
+    if case == "fuzz":
+        return replay_command(reproducer) if reproducer else ""
+    parts = ["denoise-bench", "stress", "--filters", target.name, "--backend", target.backend]
+    if case.startswith("replay:"):
+        parts += ["--replay", reproducer]
+    else:
+        parts += ["--cases", case]
+    for key, value in sorted(target.params.items()):
+        if value != target.spec.params.get(key):
+            parts += ["--param", f"{target.name}.{key}={json.dumps(value, default=str)}"]
+    return shlex.join(parts)
+
+
 @dataclass
 class StressOutcome:
     """What a stress run stored: the table, the manifest and the reproducers written."""
@@ -135,7 +156,8 @@ def run_stress(registry, executor: Executor, out_dir: str | Path, targets: list[
     progress : bool
         Show a progress bar on standard error.
     on_status : callable, optional
-        Receives one-line status messages.
+        Receives one-line status messages: what starts, and each finished case (``[k/n] label:
+        status``; with ``progress``, only the cases that fail, the bar counts the rest).
     """
     frames_info = load_reproducer(replay) if replay is not None else None
     out = check_out_dir(out_dir)
@@ -190,14 +212,17 @@ class _Stress:
                     slots.append((slot, target, case))
         if not tasks:
             return
-        self.status(f"{len(tasks)} cases")
+        skipped = len(self.targets) * len(self.cases) - len(tasks)
+        self.status(f"{len(tasks)} (filter, case) pairs to run; {skipped} do not apply")
         bar = tqdm(total=len(tasks), disable=not self.progress, unit="case", dynamic_ncols=True, leave=False)
         try:
-            for index, outcome in self.executor.run(tasks):
+            for done, (index, outcome) in enumerate(self.executor.run(tasks), 1):
                 slot, target, case = slots[index]
                 bar.set_description(tasks[index].label)
-                self._add(target, case.name, case.group, case_result(outcome, tasks[index].label), slot=slot)
+                row = self._add(target, case.name, case.group, case_result(outcome, tasks[index].label), slot=slot)
                 bar.update(1)
+                if row.verdict == "fail" or not self.progress:
+                    self.status(_case_line(done, len(tasks), tasks[index].label, row))
         finally:
             bar.close()
 
@@ -222,6 +247,7 @@ class _Stress:
         if found.example is None:
             result = CaseResult(notes=f"{found.tried} examples (seed {self.seed}), no failure; {seconds:.1f} s")
             self._add(target, "fuzz", "fuzz", result)
+            self.status(f"fuzz {target.name}/{target.backend}: {result.notes}")
             return
         result = found.result
         path = self.out / REPRODUCERS / f"{target.name}-{target.backend}.npz"
@@ -237,6 +263,7 @@ class _Stress:
         if result.status in ("pass", "rejected"):
             result.notes += "; the minimal example passes when run again (a flaky failure)"
         self._add(target, "fuzz", "fuzz", result, reproducer=str(path))
+        self.status(f"fuzz {target.name}/{target.backend}: {result.status}: {result.message[:160]}; {result.notes}")
 
     def _replay(self, target: Target) -> None:
         frames, info = self.frames_info
@@ -254,7 +281,7 @@ class _Stress:
 
     # ------------------------------------------------------------------ rows and manifest
     def _add(self, target: Target, case: str, group: str, result: CaseResult, reproducer: str = "",
-             slot: int | None = None, write: bool = True) -> None:
+             slot: int | None = None, write: bool = True) -> StressRow:
         """Add (or, at ``slot``, replace) the row of a case; rewrite the stored table unless ``write`` is false."""
         import numba
 
@@ -264,8 +291,8 @@ class _Stress:
             case=case, group=group, status=result.status, verdict=verdict(result.status, exempt),
             message=result.message, exempt=exempt, notes=result.notes, frame=result.frame, calls=result.calls,
             height=result.height, width=result.width, ms_median=result.ms_median, ms_max=result.ms_max,
-            peak_mb=result.peak_mb, reproducer=reproducer, machine=machine_label(),
-            threads=numba.get_num_threads(),
+            peak_mb=result.peak_mb, reproducer=reproducer, command=rerun_command(target, case, reproducer),
+            machine=machine_label(), threads=numba.get_num_threads(),
         )
         if slot is None:
             self.rows.append(row)
@@ -273,6 +300,7 @@ class _Stress:
             self.rows[slot] = row
         if write:
             write_table(make_table(self.rows), self.out / RESULTS)
+        return row
 
     def _manifest(self, table: pd.DataFrame) -> dict:
         from harness import __version__
@@ -301,6 +329,16 @@ class _Stress:
             "packages": package_versions(),
             "plugins": [r.as_dict() for r in self.registry.records],
         }
+
+
+def _case_line(done: int, total: int, label: str, row: StressRow) -> str:
+    """``[k/n] filter/backend stress case: status``, with the verdict and message of a failure."""
+    line = f"[{done}/{total}] {label}: {row.status}"
+    if row.verdict in ("fail", "declared", "stale"):
+        line += f" ({row.verdict})"
+    if row.message and row.verdict != "pass":
+        line += f": {row.message[:160]}"
+    return line
 
 
 def _matches_any(pattern: str) -> bool:

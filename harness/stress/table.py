@@ -25,6 +25,7 @@ Columns (in order):
                   warms each filter up first)
 ``peak_mb``       the largest growth of the worker's resident memory during one filter call, MiB
 ``reproducer``    the saved ``.npz`` of a fuzzing failure ("" if none)
+``command``       the command line that runs this case again (``--replay FILE`` for fuzzing)
 ``machine``, ``threads``  where it ran
 ================  ==================================================================
 """
@@ -61,6 +62,7 @@ class StressRow:
     ms_max: float = math.nan
     peak_mb: float = math.nan
     reproducer: str = ""
+    command: str = ""
     machine: str = ""
     threads: int = -1
 
@@ -126,9 +128,10 @@ def matrix(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def failures(df: pd.DataFrame) -> pd.DataFrame:
-    """Rows whose verdict is not ``pass``/``n/a``: filter, backend, case, verdict, status, message."""
+    """Rows whose verdict is not ``pass``/``n/a``: filter, backend, case, verdict, status, message, command."""
     bad = df[~df.verdict.isin(["pass", "n/a"])]
-    return bad[["filter", "backend", "case", "verdict", "status", "frame", "message", "exempt", "reproducer"]]
+    return bad[["filter", "backend", "case", "verdict", "status", "frame", "message", "exempt", "reproducer",
+                "command"]]
 
 
 def per_filter(df: pd.DataFrame) -> pd.DataFrame:

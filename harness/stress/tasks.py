@@ -1,7 +1,12 @@
-"""A stress case as an executor task: it runs in the worker, so a crash or a hang is one row."""
+"""A stress case as an executor task: it runs in the worker, so a crash or a hang is one row.
+
+Python warnings a case raises (NumPy overflow on extreme input, say) go into the row's ``notes``
+instead of the terminal.
+"""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 from harness.executors.base import Outcome, Task, WorkerContext
@@ -46,11 +51,18 @@ class StressTask(Task):
 
     def run(self, context: WorkerContext, shared) -> CaseResult:
         spec = context.registry.get("filter", self.filter)
-        warm_up(spec, self.backend, self.params)
-        if self.frames is None:
-            return run_case(spec, self.backend, self.params, CASES[self.case], progress=context.progress)
-        sequence = Sequence.of(self.frames, self.resets)
-        return run_sequence(spec, self.backend, self.params, sequence, progress=context.progress, **self.flags)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            warm_up(spec, self.backend, self.params)
+            del caught[:]  # the warm-up's warnings are not the case's
+            if self.frames is None:
+                result = run_case(spec, self.backend, self.params, CASES[self.case], progress=context.progress)
+            else:
+                sequence = Sequence.of(self.frames, self.resets)
+                result = run_sequence(spec, self.backend, self.params, sequence, progress=context.progress,
+                                      **self.flags)
+        result.notes = "; ".join(filter(None, [result.notes, warning_note(caught)]))
+        return result
 
 
 def warm_up(spec, backend: str, params: dict) -> None:
@@ -70,6 +82,16 @@ def warm_up(spec, backend: str, params: dict) -> None:
             filt(scene_frame(16, 12, channels, seed=t, index=t), sampler=None)
     except (Exception, SystemExit):
         pass
+
+
+def warning_note(caught: list) -> str:
+    """The Python warnings a case raised (extreme input makes NumPy warn), kept as a note, not printed."""
+    if not caught:
+        return ""
+    seen = dict.fromkeys(f"{w.category.__name__}: {w.message} ({w.filename.rsplit('/', 1)[-1]}:{w.lineno})"
+                         for w in caught)
+    shown = "; ".join(list(seen)[:3]) + (f"; and {len(seen) - 3} more" if len(seen) > 3 else "")
+    return f"{len(caught)} warning(s): {shown}"
 
 
 def case_result(outcome: Outcome, label: str) -> CaseResult:

@@ -31,6 +31,12 @@ class Median3:
 def register_filters():
     return [
         FilterSpec(
-            name="median3", version="0.1.0", factory=Median3, description="3x3 per-channel median (third-party example)"
+            name="median3",
+            version="0.1.0",
+            factory=Median3,
+            description="3x3 per-channel median (third-party example)",
+            # each output value is one of the input values: `denoise-bench stress` and the pytest
+            # stress cases then check the tight bound (within [min, max] of the input colour)
+            convex=True,
         )
     ]
