@@ -40,7 +40,7 @@ BAD = {
     "bad backend": (["run", *QUICK, "--backend", "bogus"], "--backend: must be among cpu, cuda, auto, all"),
     "empty filters": (["run", "--scenes", "synthetic-edges", "--filters", ""], "--filters: needs at least one name"),
     "bad timeout": (["run", *QUICK, "--timeout", "0"], "--timeout: must be a finite number of seconds > 0"),
-    "bad executor": (["run", *QUICK, "--executor", "cloud"], "--executor: invalid choice: 'cloud'"),
+    "bad executor": (["run", *QUICK, "--executor", "cloud"], "--executor: must be one of dask, inline, local, got 'cloud'"),
     "bad resolution": (["run", *QUICK, "--resolution", "0x10"], "resolution sides must be in [1, 32768]"),
     "bench resolution": (["bench", "gaussian", "--resolution", "abc"], "resolution must look like 1280x720"),
     "bench repeats": (["bench", "gaussian", "--repeats", "0"], "--repeats: must be >= 1"),
