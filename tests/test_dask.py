@@ -105,6 +105,36 @@ def test_a_reference_resumes_from_its_stored_chunks(registry, cluster, tmp_path)
     assert np.array_equal(ref, RenderStore(registry, resolution=(24, 16)).reference(scene, "synthetic", 0, spp=20))
 
 
+def kill_a_worker_running(client, prefix: str, while_alive, timeout: float = 120) -> list:
+    """Kill (SIGKILL, by pid) the first worker seen running a task whose key starts with ``prefix``."""
+    deadline = time.time() + timeout
+    while time.time() < deadline and while_alive():
+        for address, keys in client.processing().items():
+            if any(str(k).startswith(prefix) for k in keys):
+                pid = client.run(os.getpid, workers=[address])[address]
+                os.kill(pid, signal.SIGKILL)
+                return [pid]
+        time.sleep(0.02)
+    return []
+
+
+@needs_dask
+def test_a_worker_killed_while_it_renders_a_chunk_loses_and_repeats_no_samples(registry, cluster, tmp_path):
+    """The killed chunk runs again elsewhere; the reference is the local one and each sample counts once."""
+    store = RenderStore(registry, Cache(tmp_path / "c"), resolution=(24, 16))
+    added, result = [], {}
+    with RemoteRenders(store, cluster, chunk=2) as renders:
+        future = renders.reference("synthetic-moving", "slow-synthetic", 1, spp=16, progress=added.append)
+        killed = kill_a_worker_running(cluster.client, "ChunkTask", lambda: not future.done())
+        result["ref"] = future.result(timeout=120)
+    assert killed, "no chunk was seen running on a worker"
+    local = RenderStore(registry, resolution=(24, 16)).reference("synthetic-moving", "synthetic", 1, spp=16, chunk=16)
+    assert np.array_equal(result["ref"], local)
+    assert sum(added) == 16 and len(added) == 8  # every chunk once
+    cluster.client.wait_for_workers(2, timeout=60)
+    assert killed[0] not in cluster.client.run(os.getpid).values()
+
+
 @needs_dask
 def test_frames_rendered_on_workers_equal_local_ones(registry, cluster, tmp_path):
     store = RenderStore(registry, Cache(tmp_path / "c"), resolution=(24, 16))
@@ -136,22 +166,14 @@ def test_a_worker_killed_while_it_holds_tasks_is_replaced_and_the_run_completes(
     filters = ["slow", "passthrough", "gaussian"]
     expected = run(registry, make_executor("inline", registry=registry), tmp_path, filters, name="inline", seeds=[0, 1])
     client = cluster.client
-    result, killed = {}, []
+    result = {}
 
     def background():
         result["table"] = run(registry, cluster, tmp_path, filters, name="dask", seeds=[0, 1])
 
     thread = threading.Thread(target=background)
     thread.start()
-    deadline = time.time() + 120
-    while time.time() < deadline and not killed and thread.is_alive():
-        for address, keys in client.processing().items():
-            if any(str(k).startswith("JobTask") for k in keys):
-                pid = client.run(os.getpid, workers=[address])[address]
-                os.kill(pid, signal.SIGKILL)
-                killed.append(pid)
-                break
-        time.sleep(0.02)
+    killed = kill_a_worker_running(client, "JobTask", thread.is_alive)
     thread.join(300)
     assert killed, "no job was seen running on a worker"
     assert not thread.is_alive() and "table" in result
