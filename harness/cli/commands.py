@@ -179,7 +179,12 @@ def _print_time_against_error(df: pd.DataFrame, registry, args, render_cost) -> 
         print(format_table(pareto_front(points, "time_ms", "error", higher)[shown]))
         best = best_within(points, args.budget or DEFAULT_BUDGETS, "time_ms", "error", higher)
         print(f"Best within a frame budget, task {task}:")
-        print(format_table(best[["budget_ms", *[c for c in shown if c in best]]]))
+        fits = best[best["entry"].notna()] if "entry" in best else best.iloc[:0]
+        if not fits.empty:
+            print(format_table(fits[["budget_ms", *[c for c in shown if c in fits]]]))
+        fastest = points["time_ms"].min()
+        for budget in best.loc[~best.index.isin(fits.index), "budget_ms"]:
+            print(f"  {budget:g} ms: no entry fits (the fastest takes {fastest:.4g} ms)")
 
 
 def cmd_report(registry, args) -> int:
