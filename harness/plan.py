@@ -321,6 +321,8 @@ def make_plan(
         "reference_spp": reference_spp, "nonfinite": nonfinite, "filters": list(filters), "metrics": list(metrics),
         "sampled_reference_spp": sampled_reference_spp, "reference_target": reference_target, "emitters": emitters,
         "timing_resolutions": [list(r) for r in timing_resolutions], "timing_scene": timing_scene,
+        # captured frames exist at one size only: never the scene timed at real resolutions
+        "fixed_size_scenes": sorted(s.name for s in scenes if s.kind == "captured"),
         **({"grid": {f: {k: list(v) for k, v in g.items()} for f, g in grid.items()}} if grid else {}),
     })
     extra = {"reference_target": float(reference_target), "emitters": emitters}
@@ -356,10 +358,12 @@ def timing_group(plan: Plan, task: str, scene: str | None = None) -> Group | Non
     """The group whose jobs also time their filter at real resolutions, for one task.
 
     The group of ``scene`` where it serves the task, else of the first scene planned for the
-    task; of that scene, the group of the fewest samples per pixel and the first seed. None
-    when the task has no group.
+    task; of that scene, the group of the fewest samples per pixel and the first seed. Scenes
+    that exist at one size only (captured frames) are never chosen. None when the task has no
+    such group.
     """
-    groups = [g for g in plan.groups if g.task == task]
+    fixed = set(plan.settings.get("fixed_size_scenes", ()))
+    groups = [g for g in plan.groups if g.task == task and g.scene not in fixed]
     if not groups:
         return None
     names = [g.scene for g in groups]
