@@ -22,6 +22,7 @@ from harness.protocols import (
     AdaptiveRenderer,
     ChunkedRenderer,
     Filter,
+    KnownNoiseRenderer,
     Metric,
     Renderer,
     StageTimedFilter,
@@ -57,6 +58,7 @@ __all__ = [
     "FilterSpec",
     "Frame",
     "FrameMeta",
+    "KnownNoiseRenderer",
     "Material",
     "Metric",
     "MetricSpec",
@@ -91,5 +93,4 @@ __all__ = [
     "write_capture",
     "write_channels",
     "write_exr",
-    "write_png",
-]
+    "write_png",]

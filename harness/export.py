@@ -11,6 +11,7 @@ from pathlib import Path
 
 from harness.exr import write_capture
 from harness.plan import choose_renderer
+from harness.references import reference_record
 from harness.renders import RenderStore
 
 
@@ -53,6 +54,9 @@ def export_scene(registry, store: RenderStore, spec, folder: str | Path, *, task
     ref_spp = reference_spp if reference_spp is not None else rspec.reference_spp
     scene = store.scene(spec.name)
     rendered = [store.frame(scene, rname, t, spp=spp, seed=seed, channels=channels) for t in range(count)]
-    refs = [store.reference(scene, rname, t, spp=ref_spp) for t in range(count)] if rspec.references else None
+    records = ([reference_record(store, scene, rname, t, spp=ref_spp) for t in range(count)]
+               if rspec.references else None)
+    refs = [r.image for r in records] if records else None
+    variances = [r.variance for r in records] if records else None
     return write_capture(folder, rendered, refs, name=spec.name, spp=spp, reference_spp=ref_spp,
-                         tags=sorted(spec.tags), tasks=sorted(spec.tasks), half=half)
+                         reference_variances=variances, tags=sorted(spec.tags), tasks=sorted(spec.tasks), half=half)

@@ -231,6 +231,7 @@ def write_capture(
     name: str | None = None,
     spp: int | None = None,
     reference_spp: int | None = None,
+    reference_variances: Sequence[np.ndarray | None] | None = None,
     tags: Sequence[str] = (),
     tasks: Sequence[str] = ("denoise",),
     description: str = "",
@@ -242,7 +243,8 @@ def write_capture(
 
         folder/capture.json            the sidecar (preset "harness", frame metadata)
         folder/frames/0000.exr         every channel of frame 0 as a layer named after it
-        folder/reference/0000.exr      the reference of frame 0 (R, G, B), when given
+        folder/reference/0000.exr      the reference of frame 0 (R, G, B), when given, with its
+                                       variance of the mean (layer ``variance``) when known
 
     Parameters
     ----------
@@ -258,6 +260,9 @@ def write_capture(
         folder's name).
     spp, reference_spp : int, optional
         Samples per pixel of the frames and of the references, stored in the sidecar.
+    reference_variances : sequence of ndarray (H, W, 3) or None, optional
+        Each reference's per-pixel variance of the mean (all known, or the layer is not
+        written), so that a run on the capture corrects its errors as the original run did.
     tags, tasks : sequence of str
         Scene tags and benchmark tasks stored in the sidecar.
     description : str
@@ -294,6 +299,11 @@ def write_capture(
             raise ValueError(f"write_capture {folder}: {len(references)} references for {len(frames)} frames")
         if all(r is None for r in references):
             references = None
+    variances = None
+    if references is not None and reference_variances is not None:
+        variances = list(reference_variances)
+        if len(variances) != len(references) or any(v is None for v in variances):
+            variances = None  # the noise of some reference is unknown: state none
     channels = [c for c in CHANNELS if c in first.channels]
     for t, frame in enumerate(frames):
         planes: dict[str, np.ndarray] = {}
@@ -305,7 +315,10 @@ def write_capture(
             want = (first.height, first.width, 3)
             if ref is None or np.shape(ref) != want:
                 raise ValueError(f"write_capture {folder}: reference {t} must be {want}, got {np.shape(ref)}")
-            write_exr(folder / "reference" / f"{t:04d}.exr", np.asarray(ref, np.float32), half=half)
+            planes = dict(zip("RGB", np.moveaxis(np.asarray(ref, np.float32), -1, 0)))
+            if variances is not None:
+                planes.update(layer_channels("variance", "variance", np.asarray(variances[t], np.float32)))
+            write_channels(folder / "reference" / f"{t:04d}.exr", planes, half=half)
     sidecar = {
         "format": CAPTURE_FORMAT,
         "version": CAPTURE_VERSION,
@@ -323,6 +336,8 @@ def write_capture(
         sidecar["spp"] = int(spp)
     if references is not None:
         sidecar["reference"] = {"file": "reference/{frame:04d}.exr", "layer": ""}
+        if variances is not None:
+            sidecar["reference"]["variance"] = "variance"
         if reference_spp is not None:
             sidecar["reference"]["spp"] = int(reference_spp)
     path = folder / SIDECAR

@@ -11,6 +11,7 @@ protocol                      what                                    declared b
 :class:`Renderer`             ``settings``, ``render``, ``reference``  every ``RendererSpec``
 :class:`ChunkedRenderer`      ``accumulate`` (a range of samples)     ``RendererSpec.chunked``
 :class:`AdaptiveRenderer`     ``sampler`` (more samples on demand)    ``RendererSpec.adaptive``
+:class:`KnownNoiseRenderer`   ``reference_variance`` (stored noise)   ``RendererSpec.reference_noise``
 :class:`Metric`               ``__call__(output(s), reference(s))``   every ``MetricSpec``
 ============================  ======================================  ==========================
 
@@ -77,6 +78,14 @@ class ChunkedRenderer(Renderer, Protocol):
 
 
 @runtime_checkable
+class KnownNoiseRenderer(Renderer, Protocol):
+    """A renderer whose references state their own noise (``RendererSpec.reference_noise``)."""
+
+    def reference_variance(self, scene: Any, frame_index: int) -> np.ndarray | None:
+        """The (H, W, 3) per-pixel variance of the mean of ``reference``, or None if unknown."""
+
+
+@runtime_checkable
 class AdaptiveRenderer(Renderer, Protocol):
     """A renderer serving adaptive filters (``RendererSpec.adaptive``)."""
 
@@ -106,6 +115,8 @@ def check_renderer(spec, renderer) -> None:
         wanted.append((ChunkedRenderer, "accumulate (declared chunked=True)"))
     if spec.adaptive:
         wanted.append((AdaptiveRenderer, "sampler (declared adaptive=True)"))
+    if spec.reference_noise:
+        wanted.append((KnownNoiseRenderer, "reference_variance (declared reference_noise=True)"))
     for protocol, what in wanted:
         if not isinstance(renderer, protocol):
             raise TypeError(f"renderer {spec.name!r}: {type(renderer).__name__} lacks {what}")

@@ -20,8 +20,9 @@ With a ``target`` the reference stops as soon as its **median relative standard 
 (``N (error / target)^2``, rounded up to whole batches), and so on. The achieved error and
 samples are part of the record and of every result row.
 
-Renderers that are not chunked give a reference of unknown noise (``variance`` None); analytic
-references (``spp`` 0) have zero variance.
+Renderers that are not chunked give a reference of unknown noise (``variance`` None), unless
+they declare ``reference_noise`` and state it themselves (stored captures); analytic references
+(``spp`` 0) have zero variance.
 """
 
 from __future__ import annotations
@@ -194,6 +195,10 @@ def reference_record(
     if spp == 0 or not spec.chunked:
         image = store.reference(scene, renderer, frame_index, spp=spp, chunk=chunk, progress=progress,
                                 map_chunks=map_chunks)
+        if spec.reference_noise:  # stored references say their own noise (None: unknown)
+            variance = store.renderer(renderer).reference_variance(scene, frame_index)
+            error = relative_error(image, variance) if variance is not None else math.nan
+            return ReferenceRecord(image, variance, int(spp), error, float(target))
         if spp == 0:
             return ReferenceRecord(image, np.zeros_like(image), 0, 0.0, float(target))
         return ReferenceRecord(image, None, int(spp), math.nan, float(target))

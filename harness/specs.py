@@ -197,9 +197,11 @@ class RendererSpec:
         ``render(scene, frame_index, *, spp, seed, channels, resolution) -> Frame``,
         ``reference(scene, frame_index, *, spp, seed, resolution) -> ndarray`` (when
         ``references``), ``accumulate(scene, frame_index, *, first_sample, count, seed,
-        resolution) -> ndarray`` (when ``chunked``) and ``sampler(scene, frame_index, *, spp,
-        seed, channels, resolution) -> Sampler`` (when ``adaptive``), and ``settings() -> dict``
-        (part of cache keys). See :mod:`harness.protocols`.
+        resolution) -> ndarray`` (when ``chunked``), ``sampler(scene, frame_index, *, spp,
+        seed, channels, resolution) -> Sampler`` (when ``adaptive``),
+        ``reference_variance(scene, frame_index) -> ndarray or None`` (when
+        ``reference_noise``), and ``settings() -> dict`` (part of cache keys). See
+        :mod:`harness.protocols`.
     provides : iterable of str
         Channels the renderer can produce.
     references : bool
@@ -213,6 +215,10 @@ class RendererSpec:
     chunked : bool
         True if the renderer has ``accumulate`` (the float64 sum of a range of samples):
         references are then rendered in resumable, distributable chunks.
+    reference_noise : bool
+        True if the renderer has ``reference_variance``: its references come with their
+        per-pixel variance of the mean (None where unknown), as stored references do
+        (``captured``); chunked renderers' variance is estimated by the harness instead.
     tasks : iterable of str
         Benchmark tasks whose input and reference it makes (:data:`TASKS`).
     """
@@ -228,6 +234,7 @@ class RendererSpec:
     description: str = ""
     chunked: bool = False
     tasks: frozenset = frozenset({"denoise"})
+    reference_noise: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
@@ -242,6 +249,7 @@ class RendererSpec:
             "scene_kinds": sorted(self.scene_kinds),
             "reference_spp": self.reference_spp,
             "chunked": self.chunked,
+            "reference_noise": self.reference_noise,
             "tasks": sorted(self.tasks),
         }
 

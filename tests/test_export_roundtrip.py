@@ -6,10 +6,9 @@ import pytest
 
 from tests.test_run import bench
 
-# the metrics that do not use the reference's noise: a capture folder does not carry the
-# reference's variance of the mean yet, so the bias-corrected squared errors and the temporal
-# error of a captured run are not those of the built-in run (an open point of issue 17)
-METRICS = ["flip", "ssim"]
+# every metric, the bias-corrected ones included: the capture carries each reference's variance
+METRICS = ["flip", "psnr", "relmse", "rmse", "display_rmse", "display_psnr", "ssim", "temporal_error",
+           "reference_noise"]
 FILTERS = "eaw,svgf,sbf,lbf,passthrough,gaussian,opencv_jbf"
 
 
@@ -32,6 +31,20 @@ def test_exported_scene_scores_like_the_builtin(tmp_path, scene, frames):
         a, b = builtin[m].to_numpy(), captured[m].to_numpy()
         assert np.array_equal(a, b, equal_nan=True), f"{scene}: {m} differs"
     assert (builtin.reference_hash == captured.reference_hash).all()
+
+
+def test_a_capture_without_reference_variance_has_unknown_not_zero_noise(tmp_path):
+    import json
+
+    common = ["--resolution", "32x24", "--frames", "1", "--cache-dir", tmp_path / "c"]
+    bench(["export", "--scenes", "cornell", "--reference-spp", "16", *common, "--out", tmp_path / "x"])
+    sidecar = tmp_path / "x" / "cornell" / "capture.json"
+    data = json.loads(sidecar.read_text())
+    assert data["reference"].pop("variance") == "variance"
+    sidecar.write_text(json.dumps(data))
+    captured = _run(["--scene-dir", tmp_path / "x" / "cornell", *common, "--seeds", "0", "--timing-at", "none"],
+                    tmp_path / "captured")
+    assert captured.reference_noise.isna().all() and captured.rmse.notna().all()
 
 
 def test_save_outputs_writes_exr_per_frame(tmp_path):

@@ -30,6 +30,7 @@ def register_renderers():
             adaptive=False,
             scene_kinds=frozenset({KIND}),
             reference_spp=0,
+            reference_noise=True,
             tasks={"denoise"},
             description="frames, G-buffers and references captured by other renderers (OpenEXR AOVs + sidecar)",
         )

@@ -94,6 +94,15 @@ class FrameReader:
         self._warn_nonfinite("reference", out, t, source)
         return out
 
+    def reference_variance(self, t: int) -> np.ndarray | None:
+        """The reference's per-pixel variance of the mean in frame ``t`` (H, W, 3), or None."""
+        source = self.capture.reference_variance
+        if source is None:
+            return None
+        out = self._convert("variance", self._take({}, source, t), t, source)
+        self._warn_nonfinite("variance", out, t, source)
+        return out
+
     # ----------------------------------------------------------------------------- internals
     def _file(self, files: dict, path) -> tuple[dict, tuple]:
         if path not in files:

@@ -154,6 +154,20 @@ class CapturedRenderer:
             )
         return ref
 
+    def reference_variance(self, scene, frame_index: int) -> np.ndarray | None:
+        """The captured reference's per-pixel variance of the mean, or None where the capture
+        does not state it (the reference's noise is then unknown, never taken as zero)."""
+        capture = self._capture(scene)
+        self._index(capture, frame_index)
+        if not scene.params["references"]:
+            return None
+        variance = FrameReader(capture).reference_variance(frame_index)
+        want = (scene.resolution[1], scene.resolution[0], 3)
+        if variance is not None and variance.shape != want:
+            raise CaptureError(f"{capture.path(capture.reference_variance, frame_index)}: reference variance is "
+                               f"{variance.shape[1]}x{variance.shape[0]}, the frames are {want[1]}x{want[0]}")
+        return variance
+
     @staticmethod
     def _meta(capture: Capture, scene, frame_index: int, shape) -> FrameMeta:
         """The frame's metadata: the sidecar's entry when it has one, else defaults."""

@@ -93,6 +93,9 @@ class Capture:
         Channel sources (``color`` always among them).
     reference : Source or None
     reference_spp : int or None
+    reference_variance : Source or None
+        The reference's per-pixel variance of the mean (a layer of the reference's file, in
+        linear sRGB), when the sidecar's reference names one.
     conventions : dict
         Every convention, the harness's defaults filled in.
     camera : dict
@@ -113,6 +116,7 @@ class Capture:
     sources: dict
     reference: Source | None
     reference_spp: int | None
+    reference_variance: Source | None
     conventions: dict
     camera: dict
     frame_meta: list = field(default_factory=list)
@@ -143,6 +147,7 @@ class Capture:
             "sources": {c: source(s) for c, s in sorted(self.sources.items())},
             "reference": source(self.reference),
             "reference_spp": self.reference_spp,
+            "reference_variance": source(self.reference_variance),
             "conventions": dict(sorted(self.conventions.items())),
             "camera": self.camera,
             "frame_meta": self.frame_meta,
@@ -179,7 +184,9 @@ def load_sidecar(sidecar: Path) -> Capture:
     default_file = data.get("file", preset.get("file"))
     sources = _sources(where, data.get("channels", {}), preset["channels"], default_file)
     declared = "reference" in data
-    reference, reference_spp = _reference(where, data.get("reference", preset.get("reference")), default_file, declared)
+    reference_entry = data.get("reference", preset.get("reference"))
+    reference, reference_spp = _reference(where, reference_entry, default_file, declared)
+    reference_variance = _reference_variance(where, reference_entry, reference)
     conventions = _conventions(where, {**preset["conventions"], **_table(where, "conventions", data, {})})
     camera = _camera(where, _table(where, "camera", data, {}))
     frame_meta = _frame_meta(where, data.get("frame", []), frames)
@@ -202,6 +209,7 @@ def load_sidecar(sidecar: Path) -> Capture:
         sources=sources,
         reference=reference,
         reference_spp=reference_spp,
+        reference_variance=reference_variance,
         conventions=conventions,
         camera=camera,
         frame_meta=frame_meta,
@@ -264,7 +272,7 @@ def _source(where: str, channel: str, entry, default_file: str | None, required:
         entry = {"layer": entry}
     if not isinstance(entry, dict):
         raise CaptureError(f"{where}: channel {channel!r} must be a layer name or a table, got {entry!r}")
-    allowed = SOURCE_KEYS | ({"spp"} if channel == "reference" else set())
+    allowed = SOURCE_KEYS | ({"spp", "variance"} if channel == "reference" else set())
     unknown = sorted(set(entry) - allowed)
     if unknown:
         raise CaptureError(f"{where}: {channel!r} has unknown key(s) {unknown}; keys: {sorted(allowed)}")
@@ -318,6 +326,16 @@ def _reference(where: str, entry, default_file: str | None, required: bool) -> t
     spp = entry.get("spp")
     source = _source(where, "reference", entry, default_file, required)
     return source, None if spp is None else _positive(where, "reference spp", spp)
+
+
+def _reference_variance(where: str, entry, reference: Source | None) -> Source | None:
+    """The reference's per-pixel variance of the mean: a layer of the reference's file, if named."""
+    layer = entry.get("variance") if isinstance(entry, dict) and reference is not None else None
+    if layer is None:
+        return None
+    if not isinstance(layer, str) or not layer:
+        raise CaptureError(f"{where}: the reference's 'variance' must be a layer name, got {layer!r}")
+    return Source("variance", reference.file, layer, None, reference.required)
 
 
 def _conventions(where: str, given: dict) -> dict:
