@@ -12,3 +12,10 @@ def short_error(exc: BaseException, limit: int = 300) -> str:
     where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
     text = f"{type(exc).__name__}: {exc}".replace("\n", " ")
     return (text[: limit - len(where)] + where) if len(text) + len(where) > limit else text + where
+
+
+def filter_error(exc: BaseException) -> str:
+    """:func:`short_error`, with ``sys.exit`` from a plugin named as such."""
+    if isinstance(exc, SystemExit):
+        return f"SystemExit: the filter called sys.exit({exc.code!r})"
+    return short_error(exc)

@@ -3,13 +3,8 @@
 No I/O and no scheduling: a job gets its rendered inputs and returns rows (and, on request,
 outputs); an executor decides where it runs.
 
-Timing protocol (DESIGN.md): the first call of a filter on a new shape is its compile/warm-up,
-recorded as ``compile_ms`` and checked like every other call; then ``repeats`` calls are timed
-with ``time.perf_counter_ns`` and reported as median, min and max. CUDA work is synchronised
-before the clock stops. Validation, metrics and any I/O happen outside the timed region. A
-temporal filter is deep-copied before each timed call so that every repeat starts from the same
-history; the state after the last repeat carries on to the next frame. An adaptive filter's
-timed call includes the extra samples it asks for (a fresh sampler per call).
+Each frame goes through the timing protocol (:mod:`harness.timer`); validation, metrics and
+any I/O happen outside the timed region.
 
 Fault handling: a filter that fails to build, raises (``sys.exit`` included), returns a wrong
 shape or dtype, or non-finite values gives an ``error`` row with a short message.
@@ -17,28 +12,26 @@ shape or dtype, or non-finite values gives an ``error`` row with a short message
 Metrics receive what their spec ``accepts``: the reference's variance of the mean (for the
 bias correction) and the mask of scored pixels (emitters left out unless the job includes
 them). A job whose ``timing`` names real resolutions also times its filter on the group's
-frames of those sizes (:func:`time_real_resolutions`), after its quality frames.
+frames of those sizes (:func:`harness.timer.time_real_resolutions`), after its quality frames.
 """
 
 from __future__ import annotations
 
-import copy
-import json
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from harness.buffers import Frame, check_filter_output
-from harness.errors import short_error
+from harness.buffers import Frame
+from harness.errors import filter_error, short_error
 from harness.images import display_variance
 from harness.machine import machine_label
 from harness.plan import Job, MetricPlan
 from harness.references import noise_floor
 from harness.rows import Row, timing_column
+from harness.timer import sampler_factory, time_frame, time_real_resolutions
 
 
 @dataclass
@@ -129,7 +122,7 @@ def run_job(
     except (Exception, SystemExit) as exc:
         tick(n)
         first = inputs.frames[0] if n else None
-        return JobResult([_row(job, inputs, -1, first, "error", f"filter could not be built: {_why(exc)}")])
+        return JobResult([_row(job, inputs, -1, first, "error", f"filter could not be built: {filter_error(exc)}")])
     visible = spec.requires | spec.optional
     use_sampler = spec.adaptive and renderer is not None
     frame_metrics = {name: registry.get("metric", name) for name in metrics.frame}
@@ -139,12 +132,12 @@ def run_job(
     for t, frame in enumerate(inputs.frames):
         shown = frame.subset(visible & frame.channels)
         timing: dict = {}
-        sampler_factory = _sampler_factory(renderer, inputs, job, t) if use_sampler else None
+        make = sampler_factory(renderer, inputs, job, t, job.resolution) if use_sampler else None
         try:
             filt, out, timing, samples = time_frame(filt, spec, job.backend, shown, t == 0, job.repeats,
-                                                    sampler_factory, check=f"filter {job.filter!r}")
+                                                    make, check=f"filter {job.filter!r}")
         except (Exception, SystemExit) as exc:
-            rows.append(_row(job, inputs, t, frame, "error", _why(exc), timing=timing))
+            rows.append(_row(job, inputs, t, frame, "error", filter_error(exc), timing=timing))
             tick(n - t)
             return JobResult(rows, kept)
         notes = list(skipped_notes)
@@ -215,136 +208,6 @@ def _metric_inputs(mspec, variance, mask) -> dict:
     if "mask" in mspec.accepts:
         extra["mask"] = mask
     return extra
-
-
-def time_real_resolutions(spec, job: Job, inputs: GroupInputs, renderer=None) -> tuple[dict, list]:
-    """Per-frame time of the job's filter on the group's frames at real resolutions.
-
-    For each (width, height) of ``inputs.timing_frames``: a fresh filter is built and called
-    once on the first frame (compilation and, for a temporal filter, history), then timed on
-    the last one with the timing protocol (:func:`time_frame`, ``job.repeats`` calls; an
-    adaptive filter renders its extra samples at that resolution inside the timed calls).
-
-    Returns
-    -------
-    times : dict
-        (width, height) -> median milliseconds per frame.
-    failures : list of str
-        Notes for the resolutions that failed.
-    """
-    times, failures = {}, []
-    visible = spec.requires | spec.optional
-    for (w, h), frames in inputs.timing_frames.items():
-        try:
-            filt = spec.factory(backend=job.backend, **job.param_dict)
-            filt.reset()
-            for k, frame in enumerate(frames):
-                make = None
-                if spec.adaptive and renderer is not None and inputs.scene is not None:
-                    make = _sampler_at(renderer, inputs, job, frame.meta.index, (w, h))
-                shown = frame.subset(visible & frame.channels)
-                repeats = job.repeats if k == len(frames) - 1 else 1
-                filt, _, timing, _ = time_frame(filt, spec, job.backend, shown, False, repeats, make,
-                                                check=f"filter {job.filter!r}")
-            times[(w, h)] = timing["ms_median"]
-        except (Exception, SystemExit) as exc:
-            failures.append(f"timing at {w}x{h} failed: {_why(exc)}")
-    return times, failures
-
-
-def _sampler_at(renderer, inputs: GroupInputs, job: Job, t: int, resolution):
-    def make():
-        return renderer.sampler(inputs.scene, t, spp=job.spp, seed=job.seed, channels=inputs.channels,
-                                resolution=resolution)
-
-    return make
-
-
-def time_frame(filt, spec, backend: str, frame: Frame, first: bool, repeats: int, sampler_factory=None,
-               check: str | None = None):
-    """The timing protocol for one frame.
-
-    Parameters
-    ----------
-    filt : filter object
-    spec : FilterSpec
-    backend : str
-    frame : Frame
-        What the filter sees (its declared channels only).
-    first : bool
-        Whether this is the first frame (the compile/warm-up call is made and recorded).
-    repeats : int
-        Timed calls (>= 1).
-    sampler_factory : callable, optional
-        Returns a fresh sampler for each call of an adaptive filter.
-    check : str, optional
-        When given, every output (the warm-up's too) is validated, naming this owner.
-
-    Returns
-    -------
-    filt : filter object
-        The state to continue the sequence with.
-    out : ndarray
-        The output of the last timed call.
-    timing : dict
-        ``compile_ms`` (first frame), ``ms_median``, ``ms_min``, ``ms_max``, ``repeats`` and
-        ``stage_ms`` (JSON) where the filter declares ``stage_timing``.
-    samples : int
-        Samples the output is made of (the sampler's count for adaptive filters).
-    """
-    new_sampler = sampler_factory or (lambda: None)
-
-    def call(instance, sampler):
-        start = time.perf_counter_ns()
-        out = instance(frame, sampler=sampler)
-        if backend == "cuda":
-            from numba import cuda
-
-            cuda.synchronize()
-        ms = (time.perf_counter_ns() - start) / 1e6
-        if check is not None:
-            check_filter_output(out, frame, owner=check)
-        return out, ms
-
-    stateful = spec.temporal
-    timing: dict = {"repeats": repeats}
-    if first:
-        warm = copy.deepcopy(filt) if stateful else filt
-        _, timing["compile_ms"] = call(warm, new_sampler())
-    times = []
-    state = filt
-    out = sampler = None
-    for _ in range(repeats):
-        instance = copy.deepcopy(filt) if stateful else filt
-        sampler = new_sampler()
-        out, ms = call(instance, sampler)
-        times.append(ms)
-        state = instance
-    timing.update(ms_median=float(np.median(times)), ms_min=float(min(times)), ms_max=float(max(times)))
-    stages = getattr(state, "stage_ms", None) if spec.stage_timing else None
-    if stages:
-        timing["stage_ms"] = json.dumps({k: round(float(v), 4) for k, v in stages.items()})
-    if sampler is not None:
-        samples = sampler.samples_used
-    elif "spp" in frame:
-        samples = int(frame["spp"].astype(np.int64).sum())
-    else:
-        samples = -1
-    return state, out, timing, samples
-
-
-def _sampler_factory(renderer, inputs: GroupInputs, job: Job, t: int):
-    def make():
-        return renderer.sampler(inputs.scene, t, spp=job.spp, seed=job.seed, channels=inputs.channels,
-                                resolution=job.resolution)
-
-    return make
-
-
-def _why(exc: BaseException) -> str:
-    if isinstance(exc, SystemExit):
-        return f"SystemExit: the filter called sys.exit({exc.code!r})"
-    return short_error(exc)
 
 
 def _row(job: Job, inputs: GroupInputs, t: int, frame, status: str, message: str, *, scores=None, timing=None,

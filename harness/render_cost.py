@@ -4,7 +4,7 @@ A filter's time alone does not say what a frame costs: more samples per pixel co
 time, a better filter costs filter time. For each task of a plan, the renderer of its timing
 group (:func:`harness.plan.timing_group`: the timing scene, first seed) renders the scene's
 first frame at each real timing resolution and at each spp of the run, with the channels the
-group's filters receive, with the same protocol as filters (:func:`harness.jobs.time_frame`):
+group's filters receive, with the same protocol as filters (:func:`harness.timer.time_frame`):
 one untimed call (compilation), then ``repeats`` timed calls, the median reported. The render
 cache is bypassed (a cached frame costs nothing). The table is stored beside the results as
 ``render_cost.csv`` and :func:`harness.pareto.configuration_points` adds it to filter times.

@@ -7,7 +7,7 @@ and 1920x1080). They need no reference: the group the planner picks per task
 (:func:`harness.plan.timing_group`, the profile's timing scene) renders its first two frames
 again at each real resolution, with the same channels, samples per pixel and seed, through the
 render cache and the non-finite policy; each job of that group then times its filter on them
-(:func:`harness.jobs.time_real_resolutions`): one call on the first frame (compilation,
+(:func:`harness.timer.time_real_resolutions`): one call on the first frame (compilation,
 history), ``repeats`` timed calls on the second. The results are the ``ms_1280x720`` and
 ``ms_1920x1080`` columns of that job's rows.
 """

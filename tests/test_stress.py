@@ -11,7 +11,6 @@ from harness import FilterSpec, hookimpl, load_plugins
 from harness.buffers import CHANNELS, Frame
 from harness.cli import main
 from harness.executors import InlineExecutor
-from harness.jobs import time_frame
 from harness.stress import CASES, Sequence, load_reproducer, make_targets, read_stress, run_stress, select_cases
 from harness.stress.cases import STATIC_FRAMES, exemption
 from harness.stress.check import run_case, run_sequence
@@ -19,6 +18,7 @@ from harness.stress.frames import flat_frame, scene_frame, with_color
 from harness.stress.properties import Monitor
 from harness.testing import checks, plugin_checks
 from harness.testing.stress import StressCheck
+from harness.timer import time_frame
 from tests.conftest import bench_env
 from tests.test_run import bench
 

@@ -1,0 +1,141 @@
+"""The timing protocol: how one filter call on one frame is timed, at any resolution.
+
+The first call of a filter on a new shape is its compile/warm-up, recorded as ``compile_ms``
+and checked like every other call; then ``repeats`` calls are timed with
+``time.perf_counter_ns`` and reported as median, min and max. CUDA work is synchronised before
+the clock stops. Validation happens outside the timed region. A temporal filter is deep-copied
+before each timed call so that every repeat starts from the same history; the state after the
+last repeat carries on to the next frame. An adaptive filter's timed call includes the extra
+samples it asks for (a fresh sampler per call). :func:`time_real_resolutions` applies the
+protocol to a group's frames at real resolutions (:mod:`harness.timing`).
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import time
+
+import numpy as np
+
+from harness.buffers import Frame, check_filter_output
+from harness.errors import filter_error
+from harness.plan import Job
+
+
+def time_real_resolutions(spec, job: Job, inputs, renderer=None) -> tuple[dict, list]:
+    """Per-frame time of the job's filter on the group's frames at real resolutions.
+
+    ``inputs`` is the group's :class:`harness.jobs.GroupInputs`. For each (width, height) of
+    ``inputs.timing_frames``: a fresh filter is built and called
+    once on the first frame (compilation and, for a temporal filter, history), then timed on
+    the last one with the timing protocol (:func:`time_frame`, ``job.repeats`` calls; an
+    adaptive filter renders its extra samples at that resolution inside the timed calls).
+
+    Returns
+    -------
+    times : dict
+        (width, height) -> median milliseconds per frame.
+    failures : list of str
+        Notes for the resolutions that failed.
+    """
+    times, failures = {}, []
+    visible = spec.requires | spec.optional
+    for (w, h), frames in inputs.timing_frames.items():
+        try:
+            filt = spec.factory(backend=job.backend, **job.param_dict)
+            filt.reset()
+            for k, frame in enumerate(frames):
+                make = None
+                if spec.adaptive and renderer is not None and inputs.scene is not None:
+                    make = sampler_factory(renderer, inputs, job, frame.meta.index, (w, h))
+                shown = frame.subset(visible & frame.channels)
+                repeats = job.repeats if k == len(frames) - 1 else 1
+                filt, _, timing, _ = time_frame(filt, spec, job.backend, shown, False, repeats, make,
+                                                check=f"filter {job.filter!r}")
+            times[(w, h)] = timing["ms_median"]
+        except (Exception, SystemExit) as exc:
+            failures.append(f"timing at {w}x{h} failed: {filter_error(exc)}")
+    return times, failures
+
+
+def sampler_factory(renderer, inputs, job: Job, t: int, resolution):
+    """A callable giving a fresh sampler of frame ``t`` at ``resolution`` (adaptive filters)."""
+    def make():
+        return renderer.sampler(inputs.scene, t, spp=job.spp, seed=job.seed, channels=inputs.channels,
+                                resolution=resolution)
+
+    return make
+
+
+def time_frame(filt, spec, backend: str, frame: Frame, first: bool, repeats: int, sampler_factory=None,
+               check: str | None = None):
+    """The timing protocol for one frame.
+
+    Parameters
+    ----------
+    filt : filter object
+    spec : FilterSpec
+    backend : str
+    frame : Frame
+        What the filter sees (its declared channels only).
+    first : bool
+        Whether this is the first frame (the compile/warm-up call is made and recorded).
+    repeats : int
+        Timed calls (>= 1).
+    sampler_factory : callable, optional
+        Returns a fresh sampler for each call of an adaptive filter.
+    check : str, optional
+        When given, every output (the warm-up's too) is validated, naming this owner.
+
+    Returns
+    -------
+    filt : filter object
+        The state to continue the sequence with.
+    out : ndarray
+        The output of the last timed call.
+    timing : dict
+        ``compile_ms`` (first frame), ``ms_median``, ``ms_min``, ``ms_max``, ``repeats`` and
+        ``stage_ms`` (JSON) where the filter declares ``stage_timing``.
+    samples : int
+        Samples the output is made of (the sampler's count for adaptive filters).
+    """
+    new_sampler = sampler_factory or (lambda: None)
+
+    def call(instance, sampler):
+        start = time.perf_counter_ns()
+        out = instance(frame, sampler=sampler)
+        if backend == "cuda":
+            from numba import cuda
+
+            cuda.synchronize()
+        ms = (time.perf_counter_ns() - start) / 1e6
+        if check is not None:
+            check_filter_output(out, frame, owner=check)
+        return out, ms
+
+    stateful = spec.temporal
+    timing: dict = {"repeats": repeats}
+    if first:
+        warm = copy.deepcopy(filt) if stateful else filt
+        _, timing["compile_ms"] = call(warm, new_sampler())
+    times = []
+    state = filt
+    out = sampler = None
+    for _ in range(repeats):
+        instance = copy.deepcopy(filt) if stateful else filt
+        sampler = new_sampler()
+        out, ms = call(instance, sampler)
+        times.append(ms)
+        state = instance
+    timing.update(ms_median=float(np.median(times)), ms_min=float(min(times)), ms_max=float(max(times)))
+    stages = getattr(state, "stage_ms", None) if spec.stage_timing else None
+    if stages:
+        timing["stage_ms"] = json.dumps({k: round(float(v), 4) for k, v in stages.items()})
+    if sampler is not None:
+        samples = sampler.samples_used
+    elif "spp" in frame:
+        samples = int(frame["spp"].astype(np.int64).sum())
+    else:
+        samples = -1
+    return state, out, timing, samples
