@@ -191,8 +191,13 @@ def test_a_task_that_kills_its_workers_becomes_a_named_error_row(registry, clust
     assert list(bad.status) == ["error"]
     message = bad.message.iloc[0]
     assert message.startswith("exits/cpu on synthetic-edges: 2 workers died running it") and "1 retries" in message
-    assert set(table[table["filter"] == "gaussian"].status) == {"ok"}
+    # a job that ran beside it on a dying worker is a suspect too (Dask's allowed-failures count
+    # every task the worker was running): it is ok, or an error naming the deaths, never lost
+    good = table[table["filter"] == "gaussian"]
+    assert len(good) and all(s == "ok" or "workers died" in m for s, m in zip(good.status, good.message))
     cluster.client.wait_for_workers(2, timeout=60)
+    again = run(registry, cluster, tmp_path, ["gaussian"], scenes=["synthetic-edges"], name="again")
+    assert set(again.status) == {"ok"}  # the cluster is whole again
 
 
 @needs_dask
