@@ -30,7 +30,7 @@ from harness.images import display_variance
 from harness.machine import machine_label
 from harness.plan import Job, MetricPlan
 from harness.references import noise_floor
-from harness.rows import Row, timing_column
+from harness.rows import Row, per_frame_column, timing_column
 from harness.timer import sampler_factory, time_frame, time_real_resolutions
 
 
@@ -179,6 +179,8 @@ def run_job(
             rows[-1].metrics[name] = float(mspec.factory()(outputs, inputs.references, **extra))
         except Exception as exc:
             rows[-1].notes = "; ".join(filter(None, [rows[-1].notes, f"{name} failed: {short_error(exc, 120)}"]))
+        if name in metrics.per_frame:
+            _score_per_frame(rows, name, mspec.factory(), outputs, inputs.references, extra)
     if job.timing and inputs.timing_frames:
         times, failures = time_real_resolutions(spec, job, inputs, renderer)
         for row in rows:
@@ -187,6 +189,19 @@ def run_job(
         if failures:
             rows[-1].notes = "; ".join(filter(None, [rows[-1].notes, *failures]))
     return JobResult(rows, kept)
+
+
+def _score_per_frame(rows: list, name: str, metric, outputs: list, references: list, extra: dict) -> None:
+    """A ``per_frame`` sequence metric on each pair of frames (t - 1, t), on row t (:func:`per_frame_column`)."""
+    column = per_frame_column(name)
+    for t in range(1, len(outputs)):
+        if references[t - 1] is None or references[t] is None:
+            continue
+        pair = {key: values[t - 1:t + 1] for key, values in extra.items()}
+        try:
+            rows[t].metrics[column] = float(metric(outputs[t - 1:t + 1], references[t - 1:t + 1], **pair))
+        except Exception as exc:
+            rows[t].notes = "; ".join(filter(None, [rows[t].notes, f"{column} failed: {short_error(exc, 120)}"]))
 
 
 def emitter_mask(frame: Frame) -> np.ndarray | None:

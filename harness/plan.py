@@ -23,7 +23,7 @@ from typing import Any
 
 from harness.backends import cuda_available, resolve_backend
 from harness.cache import make_key, plain
-from harness.rows import timing_column
+from harness.rows import per_frame_column, timing_column
 from harness.specs import TASKS
 from harness.sweeps import grid_points
 
@@ -91,10 +91,12 @@ class MetricPlan:
     frame: list = field(default_factory=list)
     sequence: list = field(default_factory=list)
     skipped: dict = field(default_factory=dict)  # metric name -> reason
+    per_frame: list = field(default_factory=list)  # sequence metrics also scored per frame (their spec's per_frame)
 
     @property
     def names(self) -> list[str]:
-        return [*self.frame, *self.sequence, *self.skipped]
+        """The metric columns of the group's rows (per-frame columns included)."""
+        return [*self.frame, *self.sequence, *map(per_frame_column, self.per_frame), *self.skipped]
 
 
 @dataclass
@@ -482,6 +484,8 @@ def _metric_plan(metric_specs, rspec, n_frames) -> MetricPlan:
             mp.skipped[m.name] = f"needs >= {m.min_frames} frames, scene has {n_frames}"
         elif m.kind == "sequence":
             mp.sequence.append(m.name)
+            if m.per_frame:
+                mp.per_frame.append(m.name)
         else:
             mp.frame.append(m.name)
     return mp

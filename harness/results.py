@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from harness.cache import atomic_write_bytes
-from harness.rows import REAL_RESOLUTIONS, combine, metric_columns, timing_column
+from harness.rows import PER_FRAME_SUFFIX, REAL_RESOLUTIONS, combine, metric_columns, timing_column
 from harness.statistics import CELL_KEYS, RESAMPLES, interval, paired
 
 #: the metric leaderboards rank by when it is scored (display-referred, comparable to the paper's RMSE)
@@ -116,6 +116,16 @@ def _cells(g: pd.DataFrame, metric: str) -> pd.DataFrame:
     return cells.groupby(CELL_KEYS, as_index=False)["value"].mean()
 
 
+def column_spec(metric_specs: dict, column: str):
+    """The spec of a metric column: the metric's, or for a per-frame column
+    (:func:`harness.rows.per_frame_column`) its sequence metric's; None when unknown."""
+    if column in metric_specs:
+        return metric_specs[column]
+    if column.endswith(PER_FRAME_SUFFIX):
+        return metric_specs.get(column[: -len(PER_FRAME_SUFFIX)])
+    return None
+
+
 def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None) -> pd.DataFrame:
     """Entries ranked by one metric, with 95% intervals and paired tests, one board per task.
 
@@ -146,7 +156,7 @@ def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None
     if ok.empty or not metrics:
         return pd.DataFrame()
     rank_by = rank_metric(metrics, rank_by)
-    spec = metric_specs.get(rank_by)
+    spec = column_spec(metric_specs, rank_by)
     higher = getattr(spec, "higher_is_better", False)
     floor_column = getattr(spec, "noise_floor", "")
     ok = ok.assign(entry=entry_labels(ok))

@@ -20,6 +20,8 @@ column is one field here.
 ``message``               why skipped, or a short error message
 ``notes``                 metrics skipped and why; non-finite input repaired
 <metric>                  one float column per metric; sequence metrics on the job's last frame
+<metric>_per_frame        a sequence metric declaring ``per_frame`` (``temporal_error``) scored on
+                          frames (t - 1, t), on frame t's row (NaN on frame 0): a time series
 ``samples_used``          samples rendered for this frame, adaptive extras included
 ``compile_ms``            the first call on a new shape (compile/warm-up), first frame only
 ``ms_median/min/max``     per-frame filter time over ``repeats`` calls
@@ -130,6 +132,15 @@ def timing_column(width: int, height: int) -> str:
     if (width, height) not in REAL_RESOLUTIONS:
         raise ValueError(f"filters are timed at {[f'{w}x{h}' for w, h in REAL_RESOLUTIONS]}, not {width}x{height}")
     return f"ms_{width}x{height}"
+
+
+#: suffix of the column holding a ``per_frame`` sequence metric's value on each frame
+PER_FRAME_SUFFIX = "_per_frame"
+
+
+def per_frame_column(metric: str) -> str:
+    """The column of a ``per_frame`` sequence metric's values on each frame (``<metric>_per_frame``)."""
+    return metric + PER_FRAME_SUFFIX
 
 
 def metric_columns(df: pd.DataFrame) -> list[str]:

@@ -278,6 +278,12 @@ class MetricSpec:
         The results column holding the reference's noise floor in this metric's units
         (``reference_noise``, ``reference_noise_display``), for metrics that have one: the
         leaderboard marks a difference smaller than it as not resolved by the references.
+    per_frame : bool
+        A ``"sequence"`` metric with ``min_frames <= 2`` that is also meaningful on each pair
+        of consecutive frames: the harness scores it on frames (t - 1, t) for every t >= 1 and
+        stores that value on frame t's row in the column :func:`harness.rows.per_frame_column` (e.g.
+        ``temporal_error_per_frame``), beside the sequence value on the last frame's row (a
+        time series, e.g. flicker over the frames).
     """
 
     name: str
@@ -289,6 +295,7 @@ class MetricSpec:
     description: str = ""
     accepts: frozenset = frozenset()
     noise_floor: str = ""
+    per_frame: bool = False
 
     def __post_init__(self):
         if self.kind not in ("frame", "sequence"):
@@ -298,10 +305,12 @@ class MetricSpec:
         if unknown:
             raise ValueError(f"metric {self.name!r}: accepts unknown input(s) {unknown}; known: {list(METRIC_INPUTS)}")
         object.__setattr__(self, "accepts", accepts)
+        if self.per_frame and (self.kind != "sequence" or self.min_frames > 2):
+            raise ValueError(f"metric {self.name!r}: per_frame needs kind 'sequence' and min_frames <= 2")
 
     def declarations(self) -> dict:
         return {"higher_is_better": self.higher_is_better, "kind": self.kind, "min_frames": self.min_frames,
-                "accepts": sorted(self.accepts), "noise_floor": self.noise_floor}
+                "accepts": sorted(self.accepts), "noise_floor": self.noise_floor, "per_frame": self.per_frame}
 
 
 @dataclass(frozen=True)

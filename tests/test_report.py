@@ -47,6 +47,11 @@ def test_report_is_a_self_contained_folder_whose_images_all_exist(run_dir):
     assert any(n.startswith("denoise-synthetic-moving-") and "crop" in n for n in names)
     assert any("relmse" in n for n in names) and any("strip" in n for n in names)
     assert any("flip" in n for n in names) and any("frames-denoise" in n for n in names)
+    # error and flicker over the frames: two panels (per-frame temporal_error below the error)
+    assert "temporal_error_per_frame per frame" in html and "Flicker (temporal_error over the sequence" in html
+    from PIL import Image
+
+    assert Image.open(index.parent / "img" / "frames-denoise-synthetic-moving.png").size == (750, 620)
     # the frames kept for the report: three per job of the first seed, with the input and reference
     kept = sorted(p.name for p in (run_dir / "report-frames" / "denoise" / "synthetic-moving").glob("*.npy"))
     assert {f"reference-f{t}.npy" for t in kept_frames(3)} <= set(kept)

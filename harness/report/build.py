@@ -22,6 +22,7 @@ from harness.report import outputs as stored
 from harness.report import pictures, plots
 from harness.report.page import esc, figure, page, table
 from harness.results import board_table, entry_labels, leaderboard, read_results
+from harness.rows import PER_FRAME_SUFFIX, metric_columns
 
 
 def write_report(run_dir, registry, *, out: str | Path | None = None, metrics=None, budgets=DEFAULT_BUDGETS,
@@ -166,13 +167,20 @@ def _scene_section(run_dir, ok, task, scene, metric, higher, out) -> list[str]:
     else:
         sections += _pictures(run_dir, task, scene, frames, names, int(rows.spp.min()), out)
     if metric and rows.frame.nunique() > 1:
+        flicker = [c for c in metric_columns(rows) if c.endswith(PER_FRAME_SUFFIX) and rows[c].notna().any()]
         name = f"frames-{stored.safe_name(task)}-{stored.safe_name(scene)}.png"
-        plots.over_frames(rows.dropna(subset=[metric]), out / "img" / name, metric=metric,
-                          title=f"{scene}: {metric} over the frames (mean over seeds)")
-        sections.append(figure(f"img/{name}", f"{metric} per frame", width=750))
-        if "temporal_error" in rows and rows.temporal_error.notna().any():
-            flicker = rows.groupby("entry").temporal_error.mean().sort_values().reset_index()
-            sections.append("<h3>Flicker (temporal_error over the sequence, mean over seeds)</h3>" + table(flicker))
+        plots.over_frames(rows, out / "img" / name, metric=metric, flicker=flicker,
+                          title=f"{scene}: {', '.join([metric, *flicker])} over the frames (mean over seeds)")
+        what = " and ".join([metric, *flicker])
+        sections.append(f"<h3>Over the frames</h3><p class='note'>{esc(what)} per frame, one line per "
+                        "configuration; a per-frame flicker value at frame t compares the change from frame t-1 to "
+                        "t with the reference's change.</p>" + figure(f"img/{name}", f"{what} per frame", width=750))
+        for column in flicker:
+            sequence = column[: -len(PER_FRAME_SUFFIX)]
+            if sequence in rows and rows[sequence].notna().any():
+                values = rows.groupby("entry")[sequence].mean().sort_values().reset_index()
+                sections.append(f"<h3>Flicker ({esc(sequence)} over the sequence, mean over seeds)</h3>"
+                                + table(values))
     return sections
 
 

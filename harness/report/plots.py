@@ -1,4 +1,4 @@
-"""The report's figures (matplotlib, Agg backend, PNG files): time against error, error over frames."""
+"""The report's figures (matplotlib, Agg backend, PNG files): time against error, error and flicker over frames."""
 
 from __future__ import annotations
 
@@ -54,22 +54,42 @@ def time_against_error(points: pd.DataFrame, path: Path, *, metric: str, higher_
     return path
 
 
-def over_frames(df: pd.DataFrame, path: Path, *, metric: str, title: str = "") -> Path:
-    """One line per entry: ``metric`` over the frames of a sequence (mean over seeds)."""
+def over_frames(df: pd.DataFrame, path: Path, *, metric: str, flicker=(), title: str = "") -> Path:
+    """Error and flicker over the frames of a sequence: one panel per column, one line per entry.
+
+    Parameters
+    ----------
+    df : DataFrame
+        A sequence's rows with an ``entry`` column (values averaged over seeds per frame).
+    path : Path
+    metric : str
+        The error metric of the first panel.
+    flicker : iterable of str
+        Per-frame columns of sequence metrics (:func:`harness.rows.per_frame_column`), one panel
+        each, below the error (their frame 0 has no value: no previous frame).
+    title : str
+    """
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7.5, 3.6), dpi=100)
-    for entry, g in df.groupby("entry", sort=True):
-        per_frame = g.groupby("frame")[metric].mean()
-        ax.plot(per_frame.index, per_frame.to_numpy(), marker=".", label=entry)
     from matplotlib.ticker import MaxNLocator
 
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_xlabel("frame")
-    ax.set_ylabel(metric)
-    ax.set_title(title, fontsize=10)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, loc="best", ncol=2)
-    fig.subplots_adjust(left=0.11, right=0.97, top=0.92, bottom=0.14)
+    panels = [metric, *flicker]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 1.0 + 2.6 * len(panels)), dpi=100, sharex=True,
+                             squeeze=False)
+    entries = sorted(set(df.entry))
+    cmap = plt.get_cmap("tab10" if len(entries) <= 10 else "tab20")
+    colours = {entry: cmap(k % cmap.N) for k, entry in enumerate(entries)}
+    for ax, column in zip(axes[:, 0], panels):
+        for entry, g in df.groupby("entry", sort=True):
+            per_frame = g.groupby("frame")[column].mean().dropna() if column in g else pd.Series(dtype=float)
+            if len(per_frame):
+                ax.plot(per_frame.index, per_frame.to_numpy(), marker=".", color=colours[entry], label=entry)
+        ax.set_ylabel(column, fontsize=8)
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].set_title(title, fontsize=10)
+    axes[0, 0].legend(fontsize=7, loc="best", ncol=2)
+    axes[-1, 0].xaxis.set_major_locator(MaxNLocator(integer=True))
+    axes[-1, 0].set_xlabel("frame")
+    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)

@@ -8,6 +8,13 @@ Bias-corrected like the squared-error metrics: with the references' variances of
 ``v_t`` (independent between frames), ``E[(d_out - d_ref)^2]`` exceeds the error against the
 true change by ``v_t + v_{t-1}``, which is subtracted per pixel; with masks, a pair scores the
 pixels scored in both frames (emitters are left out by default).
+
+Per frame (the spec declares ``per_frame``): the harness also scores each pair (t - 1, t) on
+its own and stores it on frame t's row as ``temporal_error_per_frame``, so flicker is a time
+series (a filter that flickers between frames 3 and 4 shows a spike at frame 4). The sequence
+value is the root of the pixel-count-weighted mean of the pairs' squared values: where every
+pair scores the same pixels and no pair's bias-corrected mean is negative (each pair's is
+clamped at zero, the sequence's only once), ``temporal_error == sqrt(mean_t(per_frame_t ** 2))``.
 """
 
 from __future__ import annotations
@@ -60,12 +67,13 @@ def register_metrics():
     return [
         MetricSpec(
             name="temporal_error",
-            version="2.0",
+            version="2.1",
             factory=lambda: temporal_error,
             higher_is_better=False,
             kind="sequence",
             min_frames=2,
             description="RMSE of frame differences vs. the reference's, bias-corrected, emitters excluded",
             accepts={"reference_variance", "mask"},
+            per_frame=True,
         )
     ]
