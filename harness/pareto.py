@@ -8,7 +8,9 @@ time, a better filter costs filter time; an adaptive filter's extra samples are 
 its own timed calls).
 
 The renderer's cost per spp comes from :mod:`harness.render_cost`; a filter's time from the
-``ms_1280x720`` column of the rows the run timed at that real resolution.
+``ms_1280x720`` column of the rows the run timed at that real resolution, at the
+configuration's own spp (a run times every configuration at each of its spp,
+:func:`harness.plan.timing_groups`).
 
 A configuration is on the **front** when no other one is at most as slow and at most as wrong,
 and strictly better in one of the two. Along the front, going right (more time) always buys a
@@ -86,8 +88,10 @@ def configuration_points(df: pd.DataFrame, metric: str, task: str, scene: str | 
     -------
     DataFrame
         Columns ``entry``, ``filter``, ``preset``, ``params``, ``backend``, ``spp``, ``error``,
-        ``filter_ms`` (median per-frame filter time at ``resolution``; where the run timed the
-        configuration at another spp only, that time, whose spp is ``filter_ms_spp``),
+        ``filter_ms`` (median per-frame filter time at ``resolution`` on input of the
+        configuration's spp; ``filter_ms_spp`` is the spp it was timed at: the same, unless
+        that timing is missing (a failed timing, a table of an older harness that timed the
+        lowest spp only), where the time at the nearest timed spp stands in),
         ``render_ms`` (NaN where not measured) and ``time_ms`` (their sum, or the filter's
         time alone where the render time is unknown), sorted by time.
     """

@@ -271,8 +271,8 @@ def make_plan(
         Whether pixels whose first hit is an emitter count in the metrics that take a mask
         (excluded through the ``emission`` channel, which is then rendered).
     timing_resolutions : list of (width, height)
-        Real resolutions every filter configuration is also timed at, once per task, on
-        :func:`timing_group`'s group (see :mod:`harness.timing`).
+        Real resolutions every filter configuration is also timed at, per task and spp, on
+        :func:`timing_groups`' groups (see :mod:`harness.timing`).
     timing_scene : str, optional
         The scene those timings are taken on, where it serves the task.
     grid : mapping filter -> {param: list of values}, optional
@@ -338,10 +338,9 @@ def make_plan(
                              reference_spp=reference_spp, sampled_reference_spp=sampled_reference_spp,
                              nonfinite=nonfinite, extra=extra)
     if timing_resolutions:
+        resolutions = tuple(tuple(int(v) for v in r) for r in timing_resolutions)
         for task in tasks:
-            group = timing_group(plan, task, timing_scene)
-            if group is not None:
-                resolutions = tuple(tuple(int(v) for v in r) for r in timing_resolutions)
+            for group in timing_groups(plan, task, timing_scene):
                 group.timing = resolutions
                 group.jobs = [replace(job, timing=resolutions) for job in group.jobs]
     for fspec in filter_specs:
@@ -373,6 +372,21 @@ def timing_group(plan: Plan, task: str, scene: str | None = None) -> Group | Non
     mine = [g for g in groups if g.scene == chosen]
     low = min(g.spp for g in mine)
     return [g for g in mine if g.spp == low][0]
+
+
+def timing_groups(plan: Plan, task: str, scene: str | None = None) -> list[Group]:
+    """The groups whose jobs also time their filter at real resolutions, for one task: one per spp.
+
+    The scene and seed of :func:`timing_group`, at every spp of the run (lowest first), so that
+    each configuration is timed on its own spp's input (an adaptive filter's extra samples, or
+    work that depends on the input's noise, differ between spp). A run with one spp times one
+    group. Empty when the task has no timing group.
+    """
+    first = timing_group(plan, task, scene)
+    if first is None:
+        return []
+    mine = [g for g in plan.groups if g.task == task and g.scene == first.scene and g.seed == first.seed]
+    return [next(g for g in mine if g.spp == spp) for spp in sorted({g.spp for g in mine})]
 
 
 def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_specs, configured, metric_specs,

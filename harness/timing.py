@@ -3,13 +3,15 @@
 Quality is scored at each scene's resolution (small by default, so that references are
 affordable), but a filter's cost depends on its pixel count and footprint, so the leaderboard's
 time columns come from frames of real sizes (:data:`harness.rows.REAL_RESOLUTIONS`: 1280x720
-and 1920x1080). They need no reference: the group the planner picks per task
-(:func:`harness.plan.timing_group`, the profile's timing scene) renders its first two frames
-again at each real resolution, with the same channels, samples per pixel and seed, through the
-render cache and the non-finite policy; each job of that group then times its filter on them
-(:func:`harness.timer.time_real_resolutions`): one call on the first frame (compilation,
-history), ``repeats`` timed calls on the second. The results are the ``ms_1280x720`` and
-``ms_1920x1080`` columns of that job's rows.
+and 1920x1080). They need no reference: the groups the planner picks per task
+(:func:`harness.plan.timing_groups`: the profile's timing scene and the first seed, one group
+per spp of the run) render their first two frames again at each real resolution, with the same
+channels, samples per pixel and seed, through the render cache and the non-finite policy; each
+job of those groups then times its filter on them (:func:`harness.timer.time_real_resolutions`):
+one call on the first frame (compilation, history), ``repeats`` timed calls on the second. The
+results are the ``ms_1280x720`` and ``ms_1920x1080`` columns of that job's rows, so every
+configuration has a time at each spp (:func:`harness.pareto.configuration_points` uses the
+time at the configuration's own spp).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ import pytest
 
 from harness import load_plugins
 from harness.cache import Cache
-from harness.plan import make_plan, timing_group
+from harness.plan import make_plan, timing_group, timing_groups
 from harness.profiles import DEFAULT_PROFILE, PROFILES, get_profile
 from harness.renders import RenderStore
 from tests.test_run import bench
@@ -45,7 +45,11 @@ def test_the_timing_group_is_the_profile_scene_or_the_first_one():
     assert (group.scene, group.spp, group.seed) == ("synthetic-moving", 1, 3)
     timed = [j for j in plan.jobs if j.timing]
     assert {j.filter for j in timed} == {"passthrough", "gaussian"} and all(j.timing == ((1280, 720),) for j in timed)
-    assert all(j.scene == "synthetic-moving" and j.spp == 1 and j.seed == 3 for j in timed)
+    # every configuration is timed at each spp of the run, on the first seed's groups
+    assert all(j.scene == "synthetic-moving" and j.seed == 3 for j in timed)
+    assert sorted((j.filter, j.spp) for j in timed) == [("gaussian", 1), ("gaussian", 2), ("passthrough", 1),
+                                                         ("passthrough", 2)]
+    assert [(g.spp, g.seed) for g in timing_groups(plan, "denoise", "synthetic-moving")] == [(1, 3), (2, 3)]
     other = make_plan(reg, store, scenes, ["passthrough"], ["rmse"], timing_resolutions=((1280, 720),),
                       timing_scene="atrium")
     assert [j.scene for j in other.jobs if j.timing] == ["synthetic-edges"]

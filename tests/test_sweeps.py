@@ -91,3 +91,25 @@ def test_a_sweep_over_filters_and_spp_gives_a_monotone_front(reg, tmp_path):
     for r in points.itertuples():  # every configuration off the front is dominated by one on it
         assert ((front.time_ms <= r.time_ms) & (front.error <= r.error)).any()
     assert {"eaw/cpu iterations=1 @1spp", "svgf/cpu iterations=5 @4spp"} <= set(points.entry)
+
+
+def test_each_configuration_is_timed_at_each_spp_and_the_front_uses_its_own(reg, tmp_path):
+    """``--spp 1,2`` on a synthetic scene timed at 1280x720: every configuration has a real-resolution
+    time at both spp, and each point's filter time is the one measured at its own spp."""
+    store = RenderStore(reg, Cache(tmp_path / "c"), resolution=(48, 32))
+    plan = make_plan(reg, store, [reg.scenes["synthetic-moving"]], ["passthrough", "gaussian"], ["display_rmse"],
+                     spp=[1, 2], seeds=[0, 1], frames=2, repeats=1, reference_spp=16,
+                     grid={"gaussian": {"sigma": [1.0, 2.0]}}, timing_resolutions=((1280, 720),),
+                     timing_scene="synthetic-moving")
+    assert sorted({(j.spp, j.seed) for j in plan.jobs if j.timing}) == [(1, 0), (2, 0)]
+    with make_executor("inline", registry=reg) as ex:
+        df = run_plan(reg, plan, store, ex, tmp_path / "o", progress=False).table
+    assert (df.status == "ok").all()
+    timed = df.dropna(subset=["ms_1280x720"])
+    assert set(timed.seed) == {0} and (timed.ms_1280x720 > 0).all()
+    assert timed.groupby(["filter", "params"]).spp.unique().map(sorted).map(list).tolist() == [[1, 2]] * 3
+    points = configuration_points(df, "display_rmse", "denoise")
+    assert len(points) == 3 * 2 and (points.filter_ms_spp == points.spp).all()
+    for r in points.itertuples():
+        own = timed[(timed["filter"] == r.filter) & (timed.params == r.params) & (timed.spp == r.spp)]
+        assert r.filter_ms == own.ms_1280x720.median()
