@@ -11,8 +11,12 @@ shape or dtype, or non-finite values gives an ``error`` row with a short message
 
 Metrics receive what their spec ``accepts``: the reference's variance of the mean (for the
 bias correction) and the mask of scored pixels (emitters left out unless the job includes
-them). A job whose ``timing`` names real resolutions also times its filter on the group's
-frames of those sizes (:func:`harness.timer.time_real_resolutions`), after its quality frames.
+them). A sequence metric is scored once, on the last frame's row; one that declares
+``per_frame`` is also scored on each pair of frames (t - 1, t), on frame t's row
+(:func:`harness.rows.per_frame_column`).
+
+A job whose ``timing`` names real resolutions also times its filter on the group's frames of
+those sizes (:func:`harness.timer.time_real_resolutions`), after its quality frames.
 """
 
 from __future__ import annotations

@@ -115,7 +115,7 @@ class Group:
     jobs: list = field(default_factory=list)
     metrics: MetricPlan = field(default_factory=MetricPlan)
     reference_target: float = 0.0
-    timing: tuple = ()  # real resolutions its jobs are timed at (one group per task carries them)
+    timing: tuple = ()  # real resolutions its jobs are timed at (one group per task and spp: timing_groups)
 
 
 @dataclass
