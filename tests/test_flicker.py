@@ -63,3 +63,11 @@ def test_the_plan_names_the_per_frame_column_and_the_spec_is_checked():
         "temporal_error", "temporal_error_per_frame"]
     with pytest.raises(ValueError, match="per_frame needs kind 'sequence'"):
         MetricSpec("m", "1", factory=lambda: None, per_frame=True)
+
+
+def test_a_per_frame_column_takes_its_sequence_metrics_direction():
+    from harness.results import column_spec
+
+    specs = registry().metrics
+    assert column_spec(specs, "temporal_error_per_frame") is specs["temporal_error"]
+    assert column_spec(specs, "ssim") is specs["ssim"] and column_spec(specs, "nothing_per_frame") is None

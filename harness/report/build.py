@@ -167,7 +167,8 @@ def _scene_section(run_dir, ok, task, scene, metric, higher, out) -> list[str]:
     else:
         sections += _pictures(run_dir, task, scene, frames, names, int(rows.spp.min()), out)
     if metric and rows.frame.nunique() > 1:
-        flicker = [c for c in metric_columns(rows) if c.endswith(PER_FRAME_SUFFIX) and rows[c].notna().any()]
+        flicker = [c for c in metric_columns(rows)
+                   if c.endswith(PER_FRAME_SUFFIX) and c != metric and rows[c].notna().any()]
         name = f"frames-{stored.safe_name(task)}-{stored.safe_name(scene)}.png"
         plots.over_frames(rows, out / "img" / name, metric=metric, flicker=flicker,
                           title=f"{scene}: {', '.join([metric, *flicker])} over the frames (mean over seeds)")
