@@ -73,8 +73,8 @@ def over_frames(df: pd.DataFrame, path: Path, *, metric: str, flicker=(), title:
     from matplotlib.ticker import MaxNLocator
 
     panels = [metric, *flicker]
-    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, 1.0 + 2.6 * len(panels)), dpi=100, sharex=True,
-                             squeeze=False)
+    height = 1.0 + 2.6 * len(panels)  # inches: 2.6 per panel, 1.0 for the title and the frame axis
+    fig, axes = plt.subplots(len(panels), 1, figsize=(7.5, height), dpi=100, sharex=True, squeeze=False)
     entries = sorted(set(df.entry))
     cmap = plt.get_cmap("tab10" if len(entries) <= 10 else "tab20")
     colours = {entry: cmap(k % cmap.N) for k, entry in enumerate(entries)}
@@ -89,7 +89,7 @@ def over_frames(df: pd.DataFrame, path: Path, *, metric: str, flicker=(), title:
     axes[0, 0].legend(fontsize=7, loc="best", ncol=2)
     axes[-1, 0].xaxis.set_major_locator(MaxNLocator(integer=True))
     axes[-1, 0].set_xlabel("frame")
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.11, right=0.97, top=1.0 - 0.4 / height, bottom=0.55 / height, hspace=0.12)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
