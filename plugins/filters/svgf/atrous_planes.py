@@ -20,8 +20,11 @@ laid out for LLVM's loop vectorizer:
 * **Chunks.** Each thread filters ``CHUNK`` pixels of a row at a time: per pair, one
   branch-free loop computes the depth/normal part of the two weights that the signals share,
   then one loop per signal the luminance weights and the five sums (weight, colour,
-  squared-weight variance). Rows are dealt to the threads interleaved, so sky at the top of
-  the image does not leave one thread idle.
+  squared-weight variance). The threads take tasks of a few consecutive rows from a shared
+  counter (:mod:`.schedule`): sky at the top of the image leaves no thread idle, and the
+  threads walk down the image together, so the rows their taps read are shared in the caches
+  (before, each thread filtered interleaved rows 16 threads apart, which re-read every tap row
+  from memory).
 * **Bounded values.** Colour is at most 1e37 in magnitude (:mod:`.modulation`), variances are
   clamped at ``VAR_MAX``, luminances at ``LUM_MAX`` and the luminance weight's inverse scale at
   ``INV_MAX`` (:mod:`.weights`; the per-pixel definition applies the same bounds), so every
@@ -36,6 +39,7 @@ import math
 import numpy as np
 from numba import njit, prange, uint64
 
+from .schedule import TASK_ROWS, take
 from .weights import INV_MAX, LUM_MAX, VAR_MAX, b3_tap, expneg, gauss3_tap, neg_log_series
 
 #: pixels of a row filtered together (the accumulators of a chunk stay in L1)
@@ -326,7 +330,8 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
         Also write the filtered signals to ``sig_out`` (S, 3, h, w) float32 (0 off the
         surface); the variances stay in the pool.
     nthreads : int
-        Parallel workers; rows are dealt to ``16 nthreads`` interleaved bands.
+        Parallel workers; each takes tasks of ``TASK_ROWS`` consecutive rows from a shared
+        counter (:mod:`.schedule`).
     """
     sn = np.float32(sigma_n)
     sl = np.float32(sigma_l)
@@ -335,42 +340,47 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
     o0 = uint64(src) * psu
     o1 = uint64(src + SIGNAL_PLANES) * psu
     hc = np.float32(b3_tap(0) * b3_tap(0))
-    nbands = max(min(h, 16 * nthreads), 1)
-    for band in prange(nbands):
+    tasks = -(-h // TASK_ROWS)
+    counter = np.zeros(1, np.int64)
+    for _ in prange(max(min(nthreads, tasks), 1)):
         acc = np.empty(_REGIONS * CHUNK, np.float32)
-        for i in range(np.int64(band), h, nbands):
-            row = (i + halo) * stride + halo
-            # the chunks run from the first to the last surface pixel of the row
-            jlo = w
-            jhi = 0
-            for j in range(w):
-                if pool[row + j] != _ZERO:  # the mask is plane 0
-                    jlo = min(jlo, j)
-                    jhi = j + 1
-            x0 = jlo - jlo % 16
-            x1 = x0
-            for xa in range(x0, jhi, CHUNK):
-                n = uint64(min(CHUNK, -(-(jhi - xa) // 16) * 16))
-                cb = uint64(row + xa)
-                _centre_terms(pool, acc, psu, nsig, cb, n, stride, src, sl, le)
-                _add_centre(pool, acc, uint64(0), o0, psu, cb, n, hc)
-                if nsig == 2:
-                    _add_centre(pool, acc, _SIGNAL_1, o1, psu, cb, n, hc)
-                for ky, kx in PAIRS:
-                    off = (ky * stride + kx) * step
-                    qa = uint64(np.int64(cb) + off)
-                    qb = uint64(np.int64(cb) - off)
-                    _pair_geometry(pool, acc, psu, cb, qa, qb, n, np.float32(kx * step), np.float32(ky * step),
-                                   np.float32(b3_tap(ky) * b3_tap(kx)), sn)
-                    _add_pair(pool, acc, uint64(0), o0, psu, qa, qb, n)
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+                row = (i + halo) * stride + halo
+                # the chunks run from the first to the last surface pixel of the row
+                jlo = w
+                jhi = 0
+                for j in range(w):
+                    if pool[row + j] != _ZERO:  # the mask is plane 0
+                        jlo = min(jlo, j)
+                        jhi = j + 1
+                x0 = jlo - jlo % 16
+                x1 = x0
+                for xa in range(x0, jhi, CHUNK):
+                    n = uint64(min(CHUNK, -(-(jhi - xa) // 16) * 16))
+                    cb = uint64(row + xa)
+                    _centre_terms(pool, acc, psu, nsig, cb, n, stride, src, sl, le)
+                    _add_centre(pool, acc, uint64(0), o0, psu, cb, n, hc)
                     if nsig == 2:
-                        _add_pair(pool, acc, _SIGNAL_1, o1, psu, qa, qb, n)
-                x1 = min(xa + np.int64(n), w)
-                _write_chunk(pool, acc, psu, nsig, cb, uint64(x1 - xa), dst, store, sig_out, i, xa)
-            if store:
-                for s in range(nsig):
-                    for c in range(3):
-                        for j in range(x0):
-                            sig_out[s, c, i, j] = 0.0
-                        for j in range(x1, w):
-                            sig_out[s, c, i, j] = 0.0
+                        _add_centre(pool, acc, _SIGNAL_1, o1, psu, cb, n, hc)
+                    for ky, kx in PAIRS:
+                        off = (ky * stride + kx) * step
+                        qa = uint64(np.int64(cb) + off)
+                        qb = uint64(np.int64(cb) - off)
+                        _pair_geometry(pool, acc, psu, cb, qa, qb, n, np.float32(kx * step), np.float32(ky * step),
+                                       np.float32(b3_tap(ky) * b3_tap(kx)), sn)
+                        _add_pair(pool, acc, uint64(0), o0, psu, qa, qb, n)
+                        if nsig == 2:
+                            _add_pair(pool, acc, _SIGNAL_1, o1, psu, qa, qb, n)
+                    x1 = min(xa + np.int64(n), w)
+                    _write_chunk(pool, acc, psu, nsig, cb, uint64(x1 - xa), dst, store, sig_out, i, xa)
+                if store:
+                    for s in range(nsig):
+                        for c in range(3):
+                            for j in range(x0):
+                                sig_out[s, c, i, j] = 0.0
+                            for j in range(x1, w):
+                                sig_out[s, c, i, j] = 0.0
