@@ -14,7 +14,8 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from .atrous_planes import PlanePool, atrous_level, pack_planes
-from .modulation import prepare_pixel, remodulate_pixel
+from .modulation import remodulate_pixel
+from .prepare_rows import prepare_row
 from .reproject import gradient_pixel, reproject_pixel
 from .schedule import TASK_ROWS, take
 from .variance_rows import variance_rows
@@ -32,10 +33,8 @@ def _prepare(color, indirect, nsig, emission, has_emission, albedo_in, normal_in
             if task >= tasks:
                 break
             for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
-                for j in range(w):
-                    prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in, normal_in,
-                                  depth_in, obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal,
-                                  obj, motion)
+                prepare_row(i, color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+                            obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion)
     gradient_tasks = np.zeros(1, np.int64)
     for _ in prange(max(min(nthreads, tasks), 1)):
         while True:
