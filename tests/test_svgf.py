@@ -480,12 +480,12 @@ def test_expneg_error_bound_cut_and_no_subnormals():
 
 @pytest.mark.parametrize("nsig, has_emission", [(1, False), (2, True)])
 def test_cpu_prepare_rows_equal_the_per_pixel_preparation(nsig, has_emission):
-    # the cpu backend's row-vectorized demodulation against the per-pixel definition (which the
-    # cuda backend runs), bit for bit, on inputs full of bad values
+    # the cpu backend's row-vectorized demodulation and remodulation against the per-pixel
+    # definitions (which the cuda backend runs), bit for bit, on inputs full of bad values
     from numba import njit
 
-    from plugins.filters.svgf.modulation import prepare_pixel
-    from plugins.filters.svgf.prepare_rows import prepare_row
+    from plugins.filters.svgf.modulation import prepare_pixel, remodulate_pixel
+    from plugins.filters.svgf.prepare_rows import prepare_row, remodulate_row
 
     @njit(cache=False)
     def per_pixel(c, ind, n, em, has_em, alb, nrm, z, ids, mot, eps, sig, albedo, valid, depth, normal, obj, motion):
@@ -526,3 +526,20 @@ def test_cpu_prepare_rows_equal_the_per_pixel_preparation(nsig, has_emission):
     assert 0 < want[2].sum() < h * w  # both classes present
     for a, b in zip(want, got):
         np.testing.assert_array_equal(a, b)
+
+    @njit(cache=False)
+    def remodulate_per_pixel(sig, albedo, valid, color, em, has_em, out):
+        for i in range(valid.shape[0]):
+            for j in range(valid.shape[1]):
+                remodulate_pixel(i, j, sig, albedo, valid, color, em, has_em, out)
+
+    @njit(cache=False)
+    def remodulate_per_row(sig, albedo, valid, color, em, has_em, out):
+        for i in range(valid.shape[0]):
+            remodulate_row(i, sig, albedo, valid, color, em, has_em, out)
+
+    sig, albedo, valid = field((nsig, 3, h, w), 1e3), np.abs(field((3, h, w))), want[2]
+    want_out, got_out = np.full((h, w, 3), 7, np.float32), np.full((h, w, 3), 7, np.float32)
+    remodulate_per_pixel(sig, albedo, valid, args[0], args[3], has_emission, want_out)
+    remodulate_per_row(sig, albedo, valid, args[0], args[3], has_emission, got_out)
+    np.testing.assert_array_equal(want_out, got_out)

@@ -1,6 +1,7 @@
 """The ``cpu`` backend: parallel Numba loops over image rows.
 
-Preparation, reprojection and remodulation call the per-pixel stage functions (inlined); the
+Preparation and remodulation run the row-vectorized forms of the per-pixel stage functions
+(:mod:`.prepare_rows`), reprojection calls its per-pixel function (inlined); the
 variance uses the row-vectorized kernel of :mod:`.variance_rows`, the à-trous iterations the
 padded planes of :mod:`.atrous_planes`. Every stage runs one ``prange`` iteration per thread,
 the threads taking tasks of consecutive rows from a shared counter (:mod:`.schedule`). NumPy's
@@ -14,8 +15,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from .atrous_planes import PlanePool, atrous_level, pack_planes
-from .modulation import remodulate_pixel
-from .prepare_rows import prepare_row
+from .prepare_rows import prepare_row, remodulate_row
 from .reproject import gradient_pixel, reproject_pixel
 from .schedule import TASK_ROWS, take
 from .variance_rows import variance_rows
@@ -77,8 +77,7 @@ def _remodulate(sig, albedo, valid, color, emission, has_emission, out, nthreads
             if task >= tasks:
                 break
             for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
-                for j in range(w):
-                    remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, out)
+                remodulate_row(i, sig, albedo, valid, color, emission, has_emission, out)
 
 
 class Ops:

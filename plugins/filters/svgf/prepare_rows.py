@@ -1,10 +1,10 @@
-"""Row-vectorized demodulation for the ``cpu`` backend.
+"""Row-vectorized demodulation and remodulation for the ``cpu`` backend.
 
-The same result as :func:`.modulation.prepare_pixel` (bit for bit: the same float64
-operations in the same order, no ``fastmath``), written as branch-free loops over the pixels of
-a row with unsigned column indices, so that LLVM vectorizes them: the per-pixel function (which
-the CUDA backend runs) branches on the pixel's class and indexes with signed integers, which kept
-the loop scalar.
+The same results as :func:`.modulation.prepare_pixel` and :func:`.modulation.remodulate_pixel`
+(bit for bit: the same float64 operations in the same order, no ``fastmath``), written as
+branch-free loops over the pixels of a row with unsigned column indices, so that LLVM
+vectorizes them: the per-pixel functions (which the CUDA backend runs) branch on the pixel's
+class and index with signed integers, which kept the loops scalar.
 """
 
 from __future__ import annotations
@@ -63,3 +63,30 @@ def prepare_row(i, color, indirect, nsig, emission, has_emission, albedo_in, nor
                 rest -= ind
                 sig[1, c, i, j] = min(max(ind / a, -F32_BIG), F32_BIG) if ok != 0 else 0.0
             sig[0, c, i, j] = min(max(rest / a, -F32_BIG), F32_BIG) if ok != 0 else 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _remodulated(sig, albedo, emission, has_emission, nsig, c, i, j):
+    """``albedo * (sum of the signals) + emission`` of channel ``c`` at (i, j), bounded (float64,
+    the operations of :func:`.modulation.remodulate_pixel`)."""
+    acc = 0.0 + sig[0, c, i, j]
+    if nsig == 2:
+        acc += sig[1, c, i, j]
+    e = _finite_or_zero(emission[i, j, c]) if has_emission else 0.0
+    return min(max(albedo[c, i, j] * acc + e, -F32_BIG), F32_BIG)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def remodulate_row(i, sig, albedo, valid, color, emission, has_emission, out):
+    """:func:`.modulation.remodulate_pixel` for every pixel of row ``i`` (same arguments, no
+    ``j``), branch-free."""
+    nsig = sig.shape[0]
+    for t in range(valid.shape[1]):
+        j = uint64(t)
+        ok = np.int64(valid[i, j])  # (an int: bool variables cost the arrays their noalias)
+        r = _remodulated(sig, albedo, emission, has_emission, nsig, 0, i, j)
+        g = _remodulated(sig, albedo, emission, has_emission, nsig, 1, i, j)
+        b = _remodulated(sig, albedo, emission, has_emission, nsig, 2, i, j)
+        out[i, j, 0] = r if ok != 0 else color[i, j, 0]
+        out[i, j, 1] = g if ok != 0 else color[i, j, 1]
+        out[i, j, 2] = b if ok != 0 else color[i, j, 2]
