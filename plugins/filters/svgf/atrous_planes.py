@@ -323,7 +323,7 @@ def _write_chunk(pool, acc, ps, nsig, cb, n, dst, store, sig_out, i, xa):
             for c in range(3):
                 oc = od + uint64(c) * ps
                 for j in range(n):
-                    sig_out[s, c, i, xa + np.int64(j)] = pool[oc + j]
+                    sig_out[s, c, i, uint64(xa) + j] = pool[oc + j]  # unsigned: no wraparound code
 
 
 @njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
