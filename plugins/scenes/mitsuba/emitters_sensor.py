@@ -42,7 +42,8 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
         if kind in ("sky", "sunsky"):
             scale = get_float(node, "skyScale" if kind == "sunsky" else "scale", 1.0)
             warn(f"{kind}: Hosek-Wilkie sky approximated by a zenith-to-horizon gradient (scale {scale:g}): the "
-                 "model's fitted coefficient tables are not shipped with the harness")
+                 "harness does not evaluate the model yet (its published coefficients are not shipped with the "
+                 "harness; the copy in Mitsuba 3's package, data/sunsky/sunsky_datasets.bin, is not read)")
             env = Environment(kind="sky", radiance=(0.06 * scale, 0.1 * scale, 0.2 * scale),
                               horizon=(0.16 * scale, 0.17 * scale, 0.18 * scale))
         if kind in ("sun", "sunsky"):
@@ -51,7 +52,7 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
             solid_angle = 2 * np.pi * (1 - np.cos(np.radians(radius)))
             irradiance = 1.0 * scale  # approximate: Mitsuba's sun at scale 1 is roughly unit irradiance here
             warn(f"{kind}: sun approximated by a white disc of irradiance {irradiance:g} at normal incidence "
-                 "(Mitsuba's sun spectrum from turbidity is not computed)")
+                 "(the Hosek-Wilkie solar radiance for the turbidity and elevation is not computed)")
             radiance = (irradiance / solid_angle,) * 3
             sun = Sun(direction=tuple(direction), angular_radius=radius, radiance=radiance)
         return env, sun
