@@ -165,13 +165,8 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                     n = ng
             n0 = n
             if bump >= 0:  # the bump-mapped normal (a bumpmap around twosided: seen from behind, its mirror)
-                if two_sided and bump_outside and not front:
-                    n = bump_normal(bump, (-n[0], -n[1], -n[2]), ng, wo, tri, tu, tv, tri_v, tri_uv, nf, ni,
-                                    tex_data, tex_off, tex_w, tex_h, tex_uv)
-                    n = (-n[0], -n[1], -n[2])
-                else:
-                    n = bump_normal(bump, n, ng, wo, tri, tu, tv, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w,
-                                    tex_h, tex_uv)
+                n = bump_normal(bump, two_sided and bump_outside and not front, n, ng, wo, tri, tu, tv, tri_v,
+                                tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             ca = node_colour(leaf, I_TEX_A, F_A, tu, tv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             cb = node_colour(leaf, I_TEX_B, F_B, tu, tv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             t_ax, s_ax = onb(n)

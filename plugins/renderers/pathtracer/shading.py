@@ -176,8 +176,23 @@ def _luminance_at(tex_data, k):
 
 
 @njit(cache=True, error_model="numpy")
-def bump_normal(node, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv):
-    """The shading normal of ``bumpmap`` node ``node`` at a point of triangle ``tri`` (Mitsuba 3's).
+def bump_normal(node, mirrored, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h,
+                tex_uv):
+    """The shading normal of ``bumpmap`` node ``node`` at a point of triangle ``tri``.
+
+    ``mirrored``: the bump of the opposite frame, negated (``-bump(-n)``), for a ``bumpmap``
+    holding a ``twosided`` seen from behind (see ``docs/pathtracer.md``); else :func:`_bump`.
+    """
+    if mirrored:
+        b = _bump(node, (-n[0], -n[1], -n[2]), ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w,
+                  tex_h, tex_uv)
+        return -b[0], -b[1], -b[2]
+    return _bump(node, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
+
+
+@njit(cache=True, error_model="numpy")
+def _bump(node, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv):
+    """Mitsuba 3's bump-mapped shading normal at a point of triangle ``tri``.
 
     With the triangle's ``dp/du``, ``dp/dv`` and the scaled height gradient ``(g_u, g_v)``:
     ``dp/du' = dp/du + n (g_u - <n, dp/du>)`` (likewise for v), ``n_b = normalize(dp/du' x dp/dv')``
@@ -232,7 +247,7 @@ def bump_normal(node, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex
     return c[0] / length, c[1] / length, c[2] / length
 
 
-@njit(cache=True, error_model="numpy", inline="always")
+@njit(cache=True, error_model="numpy")
 def bump_shadowing(n, nb, w):
     """Factor on light scattered along ``w`` by a bump-mapped BSDF of normal ``nb`` over ``n``.
 
