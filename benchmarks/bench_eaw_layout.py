@@ -40,12 +40,13 @@ def passes(buf, coefficients, taps, color, out):
     """All iterations, the last one writing ``out`` as the filter does."""
     threads = get_num_threads()
     ring, scratch = buf.thread_scratch(threads, coefficients.shape[0])
+    starts = cpu.balanced_rows(buf, threads)
     src, dst = buf.color
     last = coefficients.shape[0] - 1
     for i in range(last + 1):
         a_c, a_n, a_x = (np.float32(v) for v in coefficients[i])
         cpu.atrous_pass(src, dst, buf.guide, buf.state, buf.runs, buf.run_count, buf.row_surface, buf.halo,
-                        buf.stride, 2**i, a_c, max(a_n, np.float32(layout.A_N_MIN)), a_x, taps, threads, ring,
+                        buf.stride, 2**i, a_c, max(a_n, np.float32(layout.A_N_MIN)), a_x, taps, starts, ring,
                         scratch, i == last, color, out, 1.0, 1.0)
         src, dst = dst, src
 

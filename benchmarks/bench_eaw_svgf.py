@@ -37,6 +37,14 @@ subtracted)::
 
     python benchmarks/bench_eaw_svgf.py --memory --resolution 1280x720,1920x1080,3840x2160
 
+``--balance`` (Linux) also reads each thread's CPU time (``/proc/self/task/*/stat``, 10 ms
+ticks) around the timed calls and prints, per filter, how the work was shared among the threads:
+the busiest thread's share and ``total / busiest``, the speed-up over one thread that this
+sharing allows on otherwise idle cores (a measure of load balance that a loaded machine does not
+disturb, unlike wall-clock time)::
+
+    NUMBA_NUM_THREADS=2 python benchmarks/bench_eaw_svgf.py --threads 2 --filters eaw,svgf --balance
+
 ``--cpu-stages`` makes the filters' ``stage_ms`` process CPU time instead of wall-clock time
 (the plugins' stage clocks are pointed at ``time.process_time``): on a machine shared with
 other work this is the steadier per-stage breakdown; it is meaningful with one thread only.
@@ -50,6 +58,7 @@ import ctypes
 import gc
 import importlib
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -102,6 +111,20 @@ class Floor:
             self.out = np.empty_like(frame["color"])
         self.kernel(*(frame[n] for n in self.names), self.out)
         return self.out
+
+
+def thread_cpu() -> dict:
+    """CPU seconds (user + system) of each thread of this process, by thread id (Linux)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    times = {}
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{tid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:  # the thread ended
+            continue
+        times[tid] = (int(fields[11]) + int(fields[12])) / tick  # utime, stime (fields 14, 15)
+    return times
 
 
 def set_threads(n: int, filters: dict) -> None:
@@ -226,6 +249,7 @@ def main() -> None:
     ap.add_argument("--warm", type=int, default=6)
     ap.add_argument("--baseline", default="", help="git revision whose plugins are timed too")
     ap.add_argument("--cpu-stages", action="store_true", help="stage_ms in process CPU time (one thread)")
+    ap.add_argument("--balance", action="store_true", help="per-thread CPU time of the timed calls (Linux)")
     ap.add_argument("--memory", action="store_true", help="peak extra memory per filter, fresh processes")
     ap.add_argument("--memory-child", default="", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -273,14 +297,18 @@ def main() -> None:
             wall = {k: [] for k in filters}
             cpu = {k: [] for k in filters}
             stages = {k: [] for k in filters}
+            shares = {k: {} for k in filters}
             order = list(filters)
             for r in range(args.rounds):
                 for name in order[r % len(order):] + order[:r % len(order)]:
                     f = copy.deepcopy(primed[name]) if name in primed else filters[name]
+                    before = thread_cpu() if args.balance else {}
                     t0, c0 = time.perf_counter(), time.process_time()
                     f(timed)
                     wall[name].append((time.perf_counter() - t0) * 1e3)
                     cpu[name].append((time.process_time() - c0) * 1e3)
+                    for tid, t in (thread_cpu() if args.balance else {}).items():
+                        shares[name][tid] = shares[name].get(tid, 0.0) + t - before.get(tid, 0.0)
                     stages[name].append(dict(getattr(f, "stage_ms", {}) or {}))
             span = float(timed["color"].max() - timed["color"].min())
             for base in baselines:
@@ -304,6 +332,12 @@ def main() -> None:
                         ratio = np.array(t[b]) / np.array(t[a])
                         print(f"  {b} / {a} ({label}, per round): median {np.median(ratio):.2f}, "
                               f"range {ratio.min():.2f}-{ratio.max():.2f}")
+            for name in filters:
+                busy = sorted((t for t in shares[name].values() if t > 0), reverse=True)
+                if busy:
+                    total = sum(busy)
+                    print(f"  {name} thread CPU over the rounds: {', '.join(f'{t:.2f}' for t in busy[:n + 1])} s; "
+                          f"busiest share {busy[0] / total:.2f}, total / busiest {total / busy[0]:.2f}")
             for name in filters:
                 if stages[name] and stages[name][0]:
                     keys = stages[name][0]

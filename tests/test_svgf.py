@@ -476,3 +476,70 @@ def test_expneg_error_bound_cut_and_no_subnormals():
     assert np.all(y[~inside] == 0.0) and y[x == 0][0] == 1.0
     assert np.all(np.diff(y) >= 0)  # monotone
     assert np.all(y[inside] >= np.finfo(np.float32).tiny)  # no subnormal weight
+
+
+@pytest.mark.parametrize("nsig, has_emission", [(1, False), (2, True)])
+def test_cpu_prepare_rows_equal_the_per_pixel_preparation(nsig, has_emission):
+    # the cpu backend's row-vectorized demodulation and remodulation against the per-pixel
+    # definitions (which the cuda backend runs), bit for bit, on inputs full of bad values
+    from numba import njit
+
+    from plugins.filters.svgf.modulation import prepare_pixel, remodulate_pixel
+    from plugins.filters.svgf.prepare_rows import prepare_row, remodulate_row
+
+    @njit(cache=False)
+    def per_pixel(c, ind, n, em, has_em, alb, nrm, z, ids, mot, eps, sig, albedo, valid, depth, normal, obj, motion):
+        for i in range(z.shape[0]):
+            for j in range(z.shape[1]):
+                prepare_pixel(i, j, c, ind, n, em, has_em, alb, nrm, z, ids, mot, eps, sig, albedo, valid, depth,
+                              normal, obj, motion)
+
+    @njit(cache=False)
+    def per_row(c, ind, n, em, has_em, alb, nrm, z, ids, mot, eps, sig, albedo, valid, depth, normal, obj, motion):
+        for i in range(z.shape[0]):
+            prepare_row(i, c, ind, n, em, has_em, alb, nrm, z, ids, mot, eps, sig, albedo, valid, depth, normal,
+                        obj, motion)
+
+    rng = np.random.default_rng(5)
+    h, w = 9, 37
+    bad = np.array([np.nan, np.inf, -np.inf, 3.4e38, -3.4e38, 0.0, -0.0, 1e-45, 1e30], np.float32)
+
+    def field(shape, scale=1.0):
+        x = (rng.normal(size=shape) * scale).astype(np.float32)
+        pick = rng.random(shape) < 0.2
+        x[pick] = rng.choice(bad, int(pick.sum()))
+        return x
+
+    obj = rng.integers(-2, 4, (h, w)).astype(np.int32)
+    args = (field((h, w, 3), 2.0), field((h, w, 3)), nsig, field((h, w, 3)) if has_emission else
+            np.zeros((1, 1, 3), np.float32), has_emission, np.abs(field((h, w, 3))), field((h, w, 3)),
+            field((h, w), 5.0), obj, field((h, w, 2), 3.0), 1e-3)
+
+    def outputs():
+        return (np.full((nsig, 3, h, w), 7, np.float32), np.full((3, h, w), 7, np.float32),
+                np.full((h, w), 7, np.uint8), np.full((h, w), 7, np.float32), np.full((3, h, w), 7, np.float32),
+                np.full((h, w), 7, np.int32), np.full((2, h, w), 7, np.float32))
+
+    want, got = outputs(), outputs()
+    per_pixel(*args, *want)
+    per_row(*args, *got)
+    assert 0 < want[2].sum() < h * w  # both classes present
+    for a, b in zip(want, got):
+        np.testing.assert_array_equal(a, b)
+
+    @njit(cache=False)
+    def remodulate_per_pixel(sig, albedo, valid, color, em, has_em, out):
+        for i in range(valid.shape[0]):
+            for j in range(valid.shape[1]):
+                remodulate_pixel(i, j, sig, albedo, valid, color, em, has_em, out)
+
+    @njit(cache=False)
+    def remodulate_per_row(sig, albedo, valid, color, em, has_em, out):
+        for i in range(valid.shape[0]):
+            remodulate_row(i, sig, albedo, valid, color, em, has_em, out)
+
+    sig, albedo, valid = field((nsig, 3, h, w), 1e3), np.abs(field((3, h, w))), want[2]
+    want_out, got_out = np.full((h, w, 3), 7, np.float32), np.full((h, w, 3), 7, np.float32)
+    remodulate_per_pixel(sig, albedo, valid, args[0], args[3], has_emission, want_out)
+    remodulate_per_row(sig, albedo, valid, args[0], args[3], has_emission, got_out)
+    np.testing.assert_array_equal(want_out, got_out)

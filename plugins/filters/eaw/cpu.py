@@ -22,7 +22,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange, uint64
 
 from .fastexp import fast_exp_minus
-from .layout import A_N_MIN, ACTIVE, SCRATCH, Buffers, normalised, prepare
+from .layout import A_N_MIN, ACTIVE, MAX_RUNS, SCRATCH, Buffers, normalised, prepare
 
 #: pixels per accumulation chunk of the inner loop
 CHUNK = SCRATCH // 4
@@ -89,7 +89,7 @@ def _accumulate(sp, ps, cb, qf, qb, rf, rb, qf2, qb2, rf2, rb2, ring, acc, a0, n
 
 @njit(parallel=True, cache=True, fastmath=True)
 def atrous_pass(src, dst, gbuf, state, runs, run_count, row_surface, halo, stride, step, a_c, a_n, a_x, taps,
-                nthreads, ring, scratch, final, color, out, inv_scale, scale):
+                starts, ring, scratch, final, color, out, inv_scale, scale):
     """One à-trous iteration over the active runs: ``dst = src + sum w (src_q - src) / sum w``.
 
     For each row ``y`` (top to bottom within a band of rows) the weights to the 12 taps of the
@@ -117,14 +117,14 @@ def atrous_pass(src, dst, gbuf, state, runs, run_count, row_surface, halo, strid
         Coefficients of the squared colour, normal and position distances (``a_n >= A_N_MIN``).
     taps : ndarray (25,) float32
         B3-spline kernel.
-    nthreads : int
-        Parallel workers; the image is cut into ``4 nthreads`` bands of rows dealt round-robin
-        (balances sky and ground).
+    starts : ndarray (threads + 1,) int64
+        Thread ``t`` filters rows ``starts[t]`` to ``starts[t + 1]`` (one band of consecutive
+        rows per thread, of about equal work: :func:`balanced_rows`).
     ring : ndarray float32
-        Scratch of at least ``nthreads * 12 * (2 step + 1) * stride`` floats, zero outside the
+        Scratch of at least ``threads * 12 * (2 step + 1) * stride`` floats, zero outside the
         image's columns.
     scratch : ndarray float32
-        Scratch of at least ``nthreads * 4 * CHUNK`` floats.
+        Scratch of at least ``threads * 4 * CHUNK`` floats.
     final : bool
         Last iteration: instead of ``dst``, write every pixel of ``out``: ``color + (result -
         normalised color) * scale`` on active pixels, ``color`` elsewhere. Writing the change
@@ -133,91 +133,110 @@ def atrous_pass(src, dst, gbuf, state, runs, run_count, row_surface, halo, strid
     inv_scale, scale : float
         1 / colour scale and colour scale.
     """
-    h = run_count.shape[0]
     w = color.shape[1]
     ps = uint64(src.shape[0] // 3)
     ps2 = ps + ps
-    nbands = 4 * nthreads
-    band = (h + nbands - 1) // nbands
     ring_rows = 2 * step + 1
     ring_size = 12 * ring_rows * stride
-    for t in prange(nthreads):
+    for t in prange(starts.shape[0] - 1):
         r0 = np.int64(t) * ring_size  # this thread's ring: 12 taps x ring_rows rows x stride
         a0 = uint64(np.int64(t) * 4 * CHUNK)  # this thread's sums: 4 x CHUNK
         aw = a0 + uint64(3 * CHUNK)
-        for b in range(np.int64(t), nbands, nthreads):
-            y0 = b * band
-            y1 = min(y0 + band, h)
-            if y0 < 2 * step:
-                for j in range(r0, r0 + ring_size):
-                    ring[j] = np.float32(0.0)  # rows above the image: weight 0
-            for y in range(max(y0 - 2 * step, 0), y1):
-                slot = y % ring_rows
-                row = (y + halo) * stride + halo
-                for o in range(12):
-                    k = FORWARD_TAPS[o]
-                    e0 = uint64(r0 + (o * ring_rows + slot) * stride + halo)
-                    if row_surface[y] != 0:
-                        off = ((k // 5 - 2) * stride + (k % 5 - 2)) * step
-                        for xa in range(0, w, CHUNK):
-                            n = uint64(min(CHUNK, w - xa))
-                            _pair_weights(src, gbuf, ps, uint64(row + xa), uint64(row + xa + off), ring,
-                                          e0 + uint64(xa), n, taps[k], a_c, a_n, a_x)
-                    else:
-                        for j in range(w):
-                            ring[e0 + uint64(j)] = np.float32(0.0)
-                if y < y0:
-                    continue
-                if final:
-                    for x in range(w):
-                        for c in range(3):
-                            out[y, x, c] = color[y, x, c]
-                for r in range(run_count[y]):
-                    xa = runs[y, r, 0]
-                    xe = runs[y, r, 1]
-                    while xa < xe:
-                        n = uint64(min(CHUNK, xe - xa))
-                        cb = uint64(row + xa)
-                        for j in range(3 * CHUNK):
-                            scratch[a0 + uint64(j)] = np.float32(0.0)
-                        for j in range(CHUNK):
-                            scratch[aw + uint64(j)] = taps[12]  # the centre tap: weight 1, no change
-                        for o in range(0, 12, 2):
-                            k = FORWARD_TAPS[o]
-                            dy = (k // 5 - 2) * step
-                            dx = (k % 5 - 2) * step
-                            off = dy * stride + dx
-                            rf = uint64(r0 + (o * ring_rows + slot) * stride + halo + xa)
-                            rb = uint64(r0 + (o * ring_rows + (y - dy) % ring_rows) * stride + halo + xa - dx)
-                            k2 = FORWARD_TAPS[o + 1]
-                            dy2 = (k2 // 5 - 2) * step
-                            dx2 = (k2 % 5 - 2) * step
-                            off2 = dy2 * stride + dx2
-                            rf2 = uint64(r0 + ((o + 1) * ring_rows + slot) * stride + halo + xa)
-                            rb2 = uint64(r0 + ((o + 1) * ring_rows + (y - dy2) % ring_rows) * stride + halo + xa - dx2)
-                            _accumulate(src, ps, cb, uint64(row + xa + off), uint64(row + xa - off), rf, rb,
-                                        uint64(row + xa + off2), uint64(row + xa - off2), rf2, rb2, ring, scratch,
-                                        a0, n)
-                        if final:
-                            for x in range(xa, xa + np.int64(n)):
-                                if state[y, x] == ACTIVE:
-                                    j = uint64(x - xa)
-                                    ic = cb + j
-                                    inv = np.float32(1.0) / scratch[aw + j]
-                                    for c in range(3):
-                                        v = color[y, x, c]
-                                        f = src[uint64(c) * ps + ic] + scratch[a0 + uint64(c * CHUNK) + j] * inv
-                                        delta = np.float64(f) - np.float64(normalised(v, inv_scale))
-                                        out[y, x, c] = np.float32(np.float64(v) + delta * scale)
-                        else:
-                            for j in range(n):
+        y0 = starts[t]
+        y1 = starts[t + 1]
+        if y0 < 2 * step:
+            for j in range(r0, r0 + ring_size):
+                ring[j] = np.float32(0.0)  # rows above the image: weight 0
+        for y in range(max(y0 - 2 * step, 0), y1):
+            slot = y % ring_rows
+            row = (y + halo) * stride + halo
+            for o in range(12):
+                k = FORWARD_TAPS[o]
+                e0 = uint64(r0 + (o * ring_rows + slot) * stride + halo)
+                if row_surface[y] != 0:
+                    off = ((k // 5 - 2) * stride + (k % 5 - 2)) * step
+                    for xa in range(0, w, CHUNK):
+                        n = uint64(min(CHUNK, w - xa))
+                        _pair_weights(src, gbuf, ps, uint64(row + xa), uint64(row + xa + off), ring,
+                                      e0 + uint64(xa), n, taps[k], a_c, a_n, a_x)
+                else:
+                    for j in range(w):
+                        ring[e0 + uint64(j)] = np.float32(0.0)
+            if y < y0:
+                continue
+            if final:
+                for x in range(w):
+                    for c in range(3):
+                        out[y, x, c] = color[y, x, c]
+            for r in range(run_count[y]):
+                xa = runs[y, r, 0]
+                xe = runs[y, r, 1]
+                while xa < xe:
+                    n = uint64(min(CHUNK, xe - xa))
+                    cb = uint64(row + xa)
+                    for j in range(3 * CHUNK):
+                        scratch[a0 + uint64(j)] = np.float32(0.0)
+                    for j in range(CHUNK):
+                        scratch[aw + uint64(j)] = taps[12]  # the centre tap: weight 1, no change
+                    for o in range(0, 12, 2):
+                        k = FORWARD_TAPS[o]
+                        dy = (k // 5 - 2) * step
+                        dx = (k % 5 - 2) * step
+                        off = dy * stride + dx
+                        rf = uint64(r0 + (o * ring_rows + slot) * stride + halo + xa)
+                        rb = uint64(r0 + (o * ring_rows + (y - dy) % ring_rows) * stride + halo + xa - dx)
+                        k2 = FORWARD_TAPS[o + 1]
+                        dy2 = (k2 // 5 - 2) * step
+                        dx2 = (k2 % 5 - 2) * step
+                        off2 = dy2 * stride + dx2
+                        rf2 = uint64(r0 + ((o + 1) * ring_rows + slot) * stride + halo + xa)
+                        rb2 = uint64(r0 + ((o + 1) * ring_rows + (y - dy2) % ring_rows) * stride + halo + xa - dx2)
+                        _accumulate(src, ps, cb, uint64(row + xa + off), uint64(row + xa - off), rf, rb,
+                                    uint64(row + xa + off2), uint64(row + xa - off2), rf2, rb2, ring, scratch,
+                                    a0, n)
+                    if final:
+                        for x in range(xa, xa + np.int64(n)):
+                            if state[y, x] == ACTIVE:
+                                j = uint64(x - xa)
                                 ic = cb + j
-                                # only active pixels change (runs may span short gaps)
-                                inv = np.float32(state[y, uint64(xa) + j] == ACTIVE) / scratch[aw + j]
-                                dst[ic] = src[ic] + scratch[a0 + j] * inv
-                                dst[ps + ic] = src[ps + ic] + scratch[a0 + uint64(CHUNK) + j] * inv
-                                dst[ps2 + ic] = src[ps2 + ic] + scratch[a0 + uint64(2 * CHUNK) + j] * inv
-                        xa += CHUNK
+                                inv = np.float32(1.0) / scratch[aw + j]
+                                for c in range(3):
+                                    v = color[y, x, c]
+                                    f = src[uint64(c) * ps + ic] + scratch[a0 + uint64(c * CHUNK) + j] * inv
+                                    delta = np.float64(f) - np.float64(normalised(v, inv_scale))
+                                    out[y, x, c] = np.float32(np.float64(v) + delta * scale)
+                    else:
+                        for j in range(n):
+                            ic = cb + j
+                            # only active pixels change (runs may span short gaps)
+                            inv = np.float32(state[y, uint64(xa) + j] == ACTIVE) / scratch[aw + j]
+                            dst[ic] = src[ic] + scratch[a0 + j] * inv
+                            dst[ps + ic] = src[ps + ic] + scratch[a0 + uint64(CHUNK) + j] * inv
+                            dst[ps2 + ic] = src[ps2 + ic] + scratch[a0 + uint64(2 * CHUNK) + j] * inv
+                    xa += CHUNK
+
+
+def balanced_rows(buffers: Buffers, parts: int) -> np.ndarray:
+    """Cut the rows into ``parts`` bands of consecutive rows of about equal work.
+
+    A row's work is estimated as its pair weights (the whole row, where the row has a surface
+    pixel: 12 exponentials per pixel) plus its accumulation (its active runs; about half as
+    much per pixel) plus a little for the rest (a sky row costs almost nothing). One band per
+    thread: each band start recomputes ``2 step`` rows of weights for its ring, so fewer bands
+    cost less, and the estimate balances the sky at the top of a frame against the ground.
+
+    Returns
+    -------
+    ndarray (parts + 1,) int64
+        Band ``t`` is rows ``starts[t]`` to ``starts[t + 1]``.
+    """
+    b = buffers
+    lengths = b.runs[:, :, 1] - b.runs[:, :, 0]
+    lengths[np.arange(MAX_RUNS)[None, :] >= b.run_count[:, None]] = 0
+    cost = 2.0 * b.width * (b.row_surface != 0) + lengths.sum(axis=1) + 0.05 * b.width
+    total = np.cumsum(cost)
+    inner = np.searchsorted(total, total[-1] * np.arange(1, parts) / parts) + 1
+    return np.concatenate(([0], np.minimum(inner, b.height), [b.height])).astype(np.int64)
 
 
 def run(frame, params, coefficients, taps, buffers: Buffers):
@@ -248,13 +267,14 @@ def run(frame, params, coefficients, taps, buffers: Buffers):
     threads = get_num_threads()
     iterations = coefficients.shape[0]
     ring, scratch = b.thread_scratch(threads, iterations)
+    starts = balanced_rows(b, threads)
     out = np.empty_like(color)
     src, dst = b.color
     for i in range(iterations):
         a_c, a_n, a_x = (np.float32(v) for v in coefficients[i])
         a_n = max(a_n, np.float32(A_N_MIN))  # keeps the background marker effective
         atrous_pass(src, dst, b.guide, b.state, b.runs, b.run_count, b.row_surface, b.halo, b.stride, 2**i, a_c,
-                    a_n, a_x, taps, threads, ring, scratch, i == iterations - 1, color, out, 1.0 / scale, scale)
+                    a_n, a_x, taps, starts, ring, scratch, i == iterations - 1, color, out, 1.0 / scale, scale)
         src, dst = dst, src
     t2 = time.perf_counter()
     return out, {"prepare": (t1 - t0) * 1e3, "atrous": (t2 - t1) * 1e3}

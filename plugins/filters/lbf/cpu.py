@@ -101,7 +101,7 @@ def _haar(sig, hh, slots):
                 _haar_px(i, j, sig, hh)
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _vertical7(sig, aux, i, v):
     """``v[ch, j]``: sums over the clamped rows i-3..i+3 of the signals, squares and aux 0-1."""
     h = sig.shape[1]
@@ -124,7 +124,7 @@ def _vertical7(sig, aux, i, v):
             a1[j] += aux[ii, j, 1]
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _horizontal7(v, box):
     """``box[ch, j]``: sums of ``v[ch]`` over the clamped columns j-3..j+3 (vectorised inside)."""
     w = v.shape[1]
@@ -173,7 +173,7 @@ def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_
                     params[o, i, j] = out[o]
 
 
-@njit(cache=True, fastmath=True)
+@njit(cache=True)
 def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0, n, cen, part,
                  acc, out):
     """Filter the pixels ``(i, j0 .. j0 + n)`` (see :func:`.kernels.filter_px` for D).

@@ -20,8 +20,11 @@ laid out for LLVM's loop vectorizer:
 * **Chunks.** Each thread filters ``CHUNK`` pixels of a row at a time: per pair, one
   branch-free loop computes the depth/normal part of the two weights that the signals share,
   then one loop per signal the luminance weights and the five sums (weight, colour,
-  squared-weight variance). Rows are dealt to the threads interleaved, so sky at the top of
-  the image does not leave one thread idle.
+  squared-weight variance). The threads take tasks of a few consecutive rows from a shared
+  counter (:mod:`.schedule`): sky at the top of the image leaves no thread idle, and the
+  threads walk down the image together, so the rows their taps read are shared in the caches
+  (before, each thread filtered interleaved rows 16 threads apart, which re-read every tap row
+  from memory).
 * **Bounded values.** Colour is at most 1e37 in magnitude (:mod:`.modulation`), variances are
   clamped at ``VAR_MAX``, luminances at ``LUM_MAX`` and the luminance weight's inverse scale at
   ``INV_MAX`` (:mod:`.weights`; the per-pixel definition applies the same bounds), so every
@@ -36,6 +39,7 @@ import math
 import numpy as np
 from numba import njit, prange, uint64
 
+from .schedule import TASK_ROWS, take
 from .weights import INV_MAX, LUM_MAX, VAR_MAX, b3_tap, expneg, gauss3_tap, neg_log_series
 
 #: pixels of a row filtered together (the accumulators of a chunk stay in L1)
@@ -50,6 +54,8 @@ SIGNAL_PLANES = 5
 SLOPE_MAX = 1.0e30
 #: the mirrored tap pairs: (ky, kx) of the tap ``p + (ky, kx) step``; the other is ``p - ...``
 PAIRS = tuple((ky, kx) for ky in range(0, 3) for kx in range(-2, 3) if ky > 0 or kx > 0)
+#: the pairs two by two (ky, kx, ky', kx'): a signal's loop adds four taps at a time
+PAIR_PAIRS = tuple(PAIRS[k] + PAIRS[k + 1] for k in range(0, len(PAIRS), 2))
 _LR = np.float32(0.2126)
 _LG = np.float32(0.7152)
 _LB = np.float32(0.0722)
@@ -60,14 +66,14 @@ _ONE = np.float32(1.0)
 # regions (of CHUNK floats) of a thread's scratch array, as flat offsets: per signal the sums
 # (weight, red, green, blue, variance) and the centre's luminance and inverse luminance scale,
 # signal 1's regions _SIGNAL_1 after signal 0's; then the prefilter's weight sum, and the
-# current pair's weight factors and exponents. Flat indices are uint64 throughout (no
+# current two pairs' weight factors and exponents. Flat indices are uint64 throughout (no
 # wraparound tests; Numba turns a mix of int64 and uint64 into float64, so every constant
 # added to one is uint64 too).
 _OW, _OR, _OG, _OB, _OV, _OLP, _OIL = (np.uint64(k * CHUNK) for k in range(7))
 _SIGNAL_1 = np.uint64(7 * CHUNK)
 _OPDEN = np.uint64(14 * CHUNK)
-_OMA, _ODA, _OMB, _ODB = (np.uint64(k * CHUNK) for k in range(15, 19))
-_REGIONS = 19
+_OMA, _ODA, _OMB, _ODB, _OMC, _ODC, _OMD, _ODD = (np.uint64(k * CHUNK) for k in range(15, 23))
+_REGIONS = 23
 
 
 def padded_stride(width: int, halo: int) -> int:
@@ -145,28 +151,36 @@ def pack_planes(valid, depth, normal, grad, sig, var, sigma_z, depth_eps, halo, 
     """
     nsig = sig.shape[0]
     h, w = valid.shape
+    ps = uint64(plane_size)
     for r in prange(h):
         i = np.int64(r)  # prange indices may be unsigned
-        row = (i + halo) * stride + halo
-        for j in range(w):
-            planes[MASK * plane_size + row + j] = np.float32(valid[i, j] != 0)
-            planes[DEPTH * plane_size + row + j] = depth[i, j]
-            planes[SLOPE_X * plane_size + row + j] = min(max(sigma_z * grad[0, i, j], -SLOPE_MAX), SLOPE_MAX)
-            planes[SLOPE_Y * plane_size + row + j] = min(max(sigma_z * grad[1, i, j], -SLOPE_MAX), SLOPE_MAX)
-            planes[DEPTH_EPS * plane_size + row + j] = min(depth_eps * abs(depth[i, j]), SLOPE_MAX) + _TINY
-            planes[NORMAL_X * plane_size + row + j] = normal[0, i, j]
-            planes[NORMAL_Y * plane_size + row + j] = normal[1, i, j]
-            planes[NORMAL_Z * plane_size + row + j] = normal[2, i, j]
+        row = uint64((i + halo) * stride + halo)
+        # unsigned indices throughout: a signed one makes Numba emit wraparound code (no vectors)
+        for t in range(w):
+            j = uint64(t)
+            k = row + j
+            planes[uint64(MASK) * ps + k] = np.float32(valid[i, j] != 0)
+            planes[uint64(DEPTH) * ps + k] = depth[i, j]
+            planes[uint64(SLOPE_X) * ps + k] = min(max(sigma_z * grad[0, i, j], -SLOPE_MAX), SLOPE_MAX)
+            planes[uint64(SLOPE_Y) * ps + k] = min(max(sigma_z * grad[1, i, j], -SLOPE_MAX), SLOPE_MAX)
+            planes[uint64(DEPTH_EPS) * ps + k] = min(depth_eps * abs(depth[i, j]), SLOPE_MAX) + _TINY
+            planes[uint64(NORMAL_X) * ps + k] = normal[0, i, j]
+            planes[uint64(NORMAL_Y) * ps + k] = normal[1, i, j]
+            planes[uint64(NORMAL_Z) * ps + k] = normal[2, i, j]
         for s in range(nsig):
-            base = (first_plane + s * SIGNAL_PLANES) * plane_size + row
+            base = uint64(first_plane + s * SIGNAL_PLANES) * ps + row
             for c in range(3):
-                for j in range(w):
-                    planes[base + c * plane_size + j] = sig[s, c, i, j]
-            for j in range(w):
-                planes[base + 3 * plane_size + j] = np.float32(min(var[s, i, j], VAR_MAX))
-            for j in range(w):
+                oc = base + uint64(c) * ps
+                for t in range(w):
+                    j = uint64(t)
+                    planes[oc + j] = sig[s, c, i, j]
+            ov = base + uint64(3) * ps
+            ol = base + uint64(4) * ps
+            for t in range(w):
+                j = uint64(t)
+                planes[ov + j] = np.float32(min(var[s, i, j], VAR_MAX))
                 lum = _LR * sig[s, 0, i, j] + _LG * sig[s, 1, i, j] + _LB * sig[s, 2, i, j]
-                planes[base + 4 * plane_size + j] = min(max(lum, -LUM_MAX), LUM_MAX)
+                planes[ol + j] = min(max(lum, -LUM_MAX), LUM_MAX)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
@@ -227,10 +241,11 @@ def _add_centre(pool, acc, r, oc, ps, cb, n, hk):
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _pair_geometry(pool, acc, ps, cb, qa, qb, n, dxf, dyf, hk, sn):
+def _pair_geometry(pool, acc, g, ps, cb, qa, qb, n, dxf, dyf, hk, sn):
     """For taps ``qa = p + o`` and ``qb = p - o`` of ``n`` centres from ``cb``: the weight
     factors shared by the signals (kernel tap times mask times normal cut-off) and the depth and
-    normal part of the exponent (``|z_p - z_q| / (|slope(p) . o| + eps(p)) + sigma_n (-ln n_p.n_q)``)."""
+    normal part of the exponent (``|z_p - z_q| / (|slope(p) . o| + eps(p)) + sigma_n (-ln n_p.n_q)``),
+    into the scratch regions ``g + _OMA ... g + _ODB`` (``g`` is 0 or ``_OMC - _OMA``)."""
     onx = uint64(NORMAL_X) * ps
     ony = uint64(NORMAL_Y) * ps
     onz = uint64(NORMAL_Z) * ps
@@ -249,16 +264,18 @@ def _pair_geometry(pool, acc, ps, cb, qa, qb, n, dxf, dyf, hk, sn):
         inv = _ONE / (abs(pool[osx + p] * dxf + pool[osy + p] * dyf) + pool[oe + p])
         da = nx * pool[onx + a] + ny * pool[ony + a] + nz * pool[onz + a]
         db = nx * pool[onx + b] + ny * pool[ony + b] + nz * pool[onz + b]
-        acc[_OMA + j] = hk * pool[a] * np.float32(da > _ZERO)  # the mask is plane 0
-        acc[_OMB + j] = hk * pool[b] * np.float32(db > _ZERO)
-        acc[_ODA + j] = min(abs(zp - pool[oz + a]) * inv, _ARG_MAX) + sn * neg_log_series(da)
-        acc[_ODB + j] = min(abs(zp - pool[oz + b]) * inv, _ARG_MAX) + sn * neg_log_series(db)
+        acc[g + _OMA + j] = hk * pool[a] * np.float32(da > _ZERO)  # the mask is plane 0
+        acc[g + _OMB + j] = hk * pool[b] * np.float32(db > _ZERO)
+        acc[g + _ODA + j] = min(abs(zp - pool[oz + a]) * inv, _ARG_MAX) + sn * neg_log_series(da)
+        acc[g + _ODB + j] = min(abs(zp - pool[oz + b]) * inv, _ARG_MAX) + sn * neg_log_series(db)
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
-def _add_pair(pool, acc, r, oc, ps, qa, qb, n):
-    """Add taps ``qa`` and ``qb`` of a signal (scratch regions from ``r``, red plane at flat
-    offset ``oc``) to the sums of ``n`` centres, with the factors of :func:`_pair_geometry`."""
+def _add_pairs(pool, acc, r, oc, ps, qa, qb, qc, qd, n):
+    """Add the taps ``qa``, ``qb`` of one pair and ``qc``, ``qd`` of the next to a signal's sums
+    (scratch regions from ``r``, red plane at flat offset ``oc``) for ``n`` centres, with the
+    factors of :func:`_pair_geometry` (four taps per loop: the sums and the centre's terms are
+    loaded and stored once for four taps)."""
     o1 = ps
     o2 = o1 + ps
     o3 = o2 + ps
@@ -267,15 +284,20 @@ def _add_pair(pool, acc, r, oc, ps, qa, qb, n):
         k = r + j
         a = oc + qa + j
         b = oc + qb + j
+        c = oc + qc + j
+        d = oc + qd + j
         lp = acc[k + _OLP]
         il = acc[k + _OIL]
         wa = acc[_OMA + j] * expneg(-(acc[_ODA + j] + abs(lp - pool[o4 + a]) * il))
         wb = acc[_OMB + j] * expneg(-(acc[_ODB + j] + abs(lp - pool[o4 + b]) * il))
-        acc[k + _OW] += wa + wb
-        acc[k + _OR] += wa * pool[a] + wb * pool[b]
-        acc[k + _OG] += wa * pool[o1 + a] + wb * pool[o1 + b]
-        acc[k + _OB] += wa * pool[o2 + a] + wb * pool[o2 + b]
-        acc[k + _OV] += wa * wa * pool[o3 + a] + wb * wb * pool[o3 + b]
+        wc = acc[_OMC + j] * expneg(-(acc[_ODC + j] + abs(lp - pool[o4 + c]) * il))
+        wd = acc[_OMD + j] * expneg(-(acc[_ODD + j] + abs(lp - pool[o4 + d]) * il))
+        acc[k + _OW] += (wa + wb) + (wc + wd)
+        acc[k + _OR] += (wa * pool[a] + wb * pool[b]) + (wc * pool[c] + wd * pool[d])
+        acc[k + _OG] += (wa * pool[o1 + a] + wb * pool[o1 + b]) + (wc * pool[o1 + c] + wd * pool[o1 + d])
+        acc[k + _OB] += (wa * pool[o2 + a] + wb * pool[o2 + b]) + (wc * pool[o2 + c] + wd * pool[o2 + d])
+        acc[k + _OV] += ((wa * wa * pool[o3 + a] + wb * wb * pool[o3 + b])
+                         + (wc * wc * pool[o3 + c] + wd * wd * pool[o3 + d]))
 
 
 @njit(cache=True, fastmath=True, error_model="numpy", inline="always")
@@ -301,7 +323,7 @@ def _write_chunk(pool, acc, ps, nsig, cb, n, dst, store, sig_out, i, xa):
             for c in range(3):
                 oc = od + uint64(c) * ps
                 for j in range(n):
-                    sig_out[s, c, i, xa + np.int64(j)] = pool[oc + j]
+                    sig_out[s, c, i, uint64(xa) + j] = pool[oc + j]  # unsigned: no wraparound code
 
 
 @njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
@@ -326,7 +348,8 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
         Also write the filtered signals to ``sig_out`` (S, 3, h, w) float32 (0 off the
         surface); the variances stay in the pool.
     nthreads : int
-        Parallel workers; rows are dealt to ``16 nthreads`` interleaved bands.
+        Parallel workers; each takes tasks of ``TASK_ROWS`` consecutive rows from a shared
+        counter (:mod:`.schedule`).
     """
     sn = np.float32(sigma_n)
     sl = np.float32(sigma_l)
@@ -335,42 +358,52 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
     o0 = uint64(src) * psu
     o1 = uint64(src + SIGNAL_PLANES) * psu
     hc = np.float32(b3_tap(0) * b3_tap(0))
-    nbands = max(min(h, 16 * nthreads), 1)
-    for band in prange(nbands):
+    tasks = -(-h // TASK_ROWS)
+    counter = np.zeros(1, np.int64)
+    for _ in prange(max(min(nthreads, tasks), 1)):
         acc = np.empty(_REGIONS * CHUNK, np.float32)
-        for i in range(np.int64(band), h, nbands):
-            row = (i + halo) * stride + halo
-            # the chunks run from the first to the last surface pixel of the row
-            jlo = w
-            jhi = 0
-            for j in range(w):
-                if pool[row + j] != _ZERO:  # the mask is plane 0
-                    jlo = min(jlo, j)
-                    jhi = j + 1
-            x0 = jlo - jlo % 16
-            x1 = x0
-            for xa in range(x0, jhi, CHUNK):
-                n = uint64(min(CHUNK, -(-(jhi - xa) // 16) * 16))
-                cb = uint64(row + xa)
-                _centre_terms(pool, acc, psu, nsig, cb, n, stride, src, sl, le)
-                _add_centre(pool, acc, uint64(0), o0, psu, cb, n, hc)
-                if nsig == 2:
-                    _add_centre(pool, acc, _SIGNAL_1, o1, psu, cb, n, hc)
-                for ky, kx in PAIRS:
-                    off = (ky * stride + kx) * step
-                    qa = uint64(np.int64(cb) + off)
-                    qb = uint64(np.int64(cb) - off)
-                    _pair_geometry(pool, acc, psu, cb, qa, qb, n, np.float32(kx * step), np.float32(ky * step),
-                                   np.float32(b3_tap(ky) * b3_tap(kx)), sn)
-                    _add_pair(pool, acc, uint64(0), o0, psu, qa, qb, n)
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+                row = (i + halo) * stride + halo
+                # the chunks run from the first to the last surface pixel of the row
+                jlo = w
+                jhi = 0
+                for j in range(w):
+                    if pool[row + j] != _ZERO:  # the mask is plane 0
+                        jlo = min(jlo, j)
+                        jhi = j + 1
+                x0 = jlo - jlo % 16
+                x1 = x0
+                for xa in range(x0, jhi, CHUNK):
+                    n = uint64(min(CHUNK, -(-(jhi - xa) // 16) * 16))
+                    cb = uint64(row + xa)
+                    _centre_terms(pool, acc, psu, nsig, cb, n, stride, src, sl, le)
+                    _add_centre(pool, acc, uint64(0), o0, psu, cb, n, hc)
                     if nsig == 2:
-                        _add_pair(pool, acc, _SIGNAL_1, o1, psu, qa, qb, n)
-                x1 = min(xa + np.int64(n), w)
-                _write_chunk(pool, acc, psu, nsig, cb, uint64(x1 - xa), dst, store, sig_out, i, xa)
-            if store:
-                for s in range(nsig):
-                    for c in range(3):
-                        for j in range(x0):
-                            sig_out[s, c, i, j] = 0.0
-                        for j in range(x1, w):
-                            sig_out[s, c, i, j] = 0.0
+                        _add_centre(pool, acc, _SIGNAL_1, o1, psu, cb, n, hc)
+                    for ky, kx, ky2, kx2 in PAIR_PAIRS:
+                        off = (ky * stride + kx) * step
+                        qa = uint64(np.int64(cb) + off)
+                        qb = uint64(np.int64(cb) - off)
+                        _pair_geometry(pool, acc, uint64(0), psu, cb, qa, qb, n, np.float32(kx * step),
+                                       np.float32(ky * step), np.float32(b3_tap(ky) * b3_tap(kx)), sn)
+                        off2 = (ky2 * stride + kx2) * step
+                        qc = uint64(np.int64(cb) + off2)
+                        qd = uint64(np.int64(cb) - off2)
+                        _pair_geometry(pool, acc, _OMC - _OMA, psu, cb, qc, qd, n, np.float32(kx2 * step),
+                                       np.float32(ky2 * step), np.float32(b3_tap(ky2) * b3_tap(kx2)), sn)
+                        _add_pairs(pool, acc, uint64(0), o0, psu, qa, qb, qc, qd, n)
+                        if nsig == 2:
+                            _add_pairs(pool, acc, _SIGNAL_1, o1, psu, qa, qb, qc, qd, n)
+                    x1 = min(xa + np.int64(n), w)
+                    _write_chunk(pool, acc, psu, nsig, cb, uint64(x1 - xa), dst, store, sig_out, i, xa)
+                if store:
+                    for s in range(nsig):
+                        for c in range(3):
+                            for j in range(x0):
+                                sig_out[s, c, i, j] = 0.0
+                            for j in range(x1, w):
+                                sig_out[s, c, i, j] = 0.0

@@ -1,8 +1,11 @@
 """The ``cpu`` backend: parallel Numba loops over image rows.
 
-Preparation, reprojection and remodulation call the per-pixel stage functions (inlined); the
+Preparation and remodulation run the row-vectorized forms of the per-pixel stage functions
+(:mod:`.prepare_rows`), reprojection calls its per-pixel function (inlined); the
 variance uses the row-vectorized kernel of :mod:`.variance_rows`, the à-trous iterations the
-padded planes of :mod:`.atrous_planes`. NumPy's error model: no zero-division branches (every
+padded planes of :mod:`.atrous_planes`. Every stage runs one ``prange`` iteration per thread,
+the threads taking tasks of consecutive rows from a shared counter (:mod:`.schedule`). NumPy's
+error model: no zero-division branches (every
 division in the stages is guarded or has a positive denominator).
 """
 
@@ -12,48 +15,69 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from .atrous_planes import PlanePool, atrous_level, pack_planes
-from .modulation import prepare_pixel, remodulate_pixel
+from .prepare_rows import prepare_row, remodulate_row
 from .reproject import gradient_pixel, reproject_pixel
+from .schedule import TASK_ROWS, take
 from .variance_rows import variance_rows
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _prepare(color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in, obj_in,
-             motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad):
+             motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad, nthreads):
     h, w = depth_in.shape
-    for r in prange(h):
-        i = np.int64(r)  # prange indices may be unsigned
-        for j in range(w):
-            prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in, normal_in,
-                          depth_in, obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal,
-                          obj, motion)
-    for r in prange(h):
-        i = np.int64(r)  # prange indices may be unsigned
-        for j in range(w):
-            gradient_pixel(i, j, depth, valid, grad)
+    tasks = -(-h // TASK_ROWS)
+    counter = np.zeros(1, np.int64)
+    for _ in prange(max(min(nthreads, tasks), 1)):
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+                prepare_row(i, color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
+                            obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion)
+    gradient_tasks = np.zeros(1, np.int64)
+    for _ in prange(max(min(nthreads, tasks), 1)):
+        while True:
+            task = take(gradient_tasks)
+            if task >= tasks:
+                break
+            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+                for j in range(w):
+                    gradient_pixel(i, j, depth, valid, grad)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def _reproject(sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom, prev_hist,
                prev_valid, prev_depth, prev_normal, prev_obj, has_prev, depth_tol, normal_tol,
-               alpha_color, alpha_moments, history_average, max_history, acc_sig, acc_mom, hist):
+               alpha_color, alpha_moments, history_average, max_history, acc_sig, acc_mom, hist, nthreads):
     h, w = valid.shape
-    for r in prange(h):
-        i = np.int64(r)  # prange indices may be unsigned
-        for j in range(w):
-            reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom,
-                            prev_hist, prev_valid, prev_depth, prev_normal, prev_obj, has_prev,
-                            depth_tol, normal_tol, alpha_color, alpha_moments, history_average,
-                            max_history, acc_sig, acc_mom, hist)
+    tasks = -(-h // TASK_ROWS)
+    counter = np.zeros(1, np.int64)
+    for _ in prange(max(min(nthreads, tasks), 1)):
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+                for j in range(w):
+                    reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom,
+                                    prev_hist, prev_valid, prev_depth, prev_normal, prev_obj, has_prev,
+                                    depth_tol, normal_tol, alpha_color, alpha_moments, history_average,
+                                    max_history, acc_sig, acc_mom, hist)
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def _remodulate(sig, albedo, valid, color, emission, has_emission, out):
+def _remodulate(sig, albedo, valid, color, emission, has_emission, out, nthreads):
     h, w = valid.shape
-    for r in prange(h):
-        i = np.int64(r)  # prange indices may be unsigned
-        for j in range(w):
-            remodulate_pixel(i, j, sig, albedo, valid, color, emission, has_emission, out)
+    tasks = -(-h // TASK_ROWS)
+    counter = np.zeros(1, np.int64)
+    for _ in prange(max(min(nthreads, tasks), 1)):
+        while True:
+            task = take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+                remodulate_row(i, sig, albedo, valid, color, emission, has_emission, out)
 
 
 class Ops:
@@ -77,9 +101,17 @@ class Ops:
     def synchronize(self):
         """Nothing to wait for."""
 
-    prepare = staticmethod(_prepare)
-    reproject = staticmethod(_reproject)
-    variance = staticmethod(variance_rows)
+    def prepare(self, *args):
+        """Demodulation, planar G-buffer and depth gradient (:func:`.modulation.prepare_pixel`)."""
+        _prepare(*args, get_num_threads())
+
+    def reproject(self, *args):
+        """Reprojection and accumulation (:func:`.reproject.reproject_pixel`)."""
+        _reproject(*args, get_num_threads())
+
+    def variance(self, *args):
+        """Luminance variance (:func:`.variance_rows.variance_rows`)."""
+        variance_rows(*args, get_num_threads())
 
     def atrous(self, it, iterations, sig, var, valid, depth, normal, grad, sigma_z, sigma_n, sigma_l,
                depth_eps, lum_eps, sig_out, var_out, keep):
@@ -100,4 +132,7 @@ class Ops:
         atrous_level(pool.planes, pool.plane_size, nsig, h, w, pool.halo, pool.stride, 1 << it,
                      pool.signal_plane(it % 2), pool.signal_plane((it + 1) % 2), sigma_n, sigma_l, lum_eps, keep,
                      sig_out, get_num_threads())
-    remodulate = staticmethod(_remodulate)
+
+    def remodulate(self, *args):
+        """Remodulation (:func:`.modulation.remodulate_pixel`)."""
+        _remodulate(*args, get_num_threads())
