@@ -72,7 +72,7 @@ def package_versions() -> dict:
 
 
 def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: dict | None = None,
-                  reused_jobs: int = 0) -> dict:
+                  reused_jobs: int = 0, scene_approximations: dict | None = None) -> dict:
     """The manifest of a stored results table.
 
     Parameters
@@ -86,6 +86,9 @@ def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: di
         Where jobs ran (:meth:`harness.executors.Executor.describe`).
     reused_jobs : int
         Jobs kept from an earlier run (``--resume``).
+    scene_approximations : dict, optional
+        Scene name -> what its plugin renders approximately
+        (:meth:`harness.renders.RenderStore.scene_approximations`); kept for the table's scenes.
     """
     from harness import __version__
 
@@ -118,6 +121,8 @@ def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: di
         "tasks": sorted(set(ran.task)) if len(ran) else [],
         "seeds": sorted(int(s) for s in set(ran.seed)) if len(ran) else [],
         "scenes": scenes,
+        "scene_approximations": {name: list(notes) for name, notes in sorted((scene_approximations or {}).items())
+                                 if name in set(table.scene)} if len(table) else {},
         "references": refs,
         "reference_quality": quality,
     }

@@ -69,6 +69,18 @@ class RenderStore:
     def scene_hash(self, name: str) -> str:
         return self.scene(name).content_hash()
 
+    def scene_approximations(self, names) -> dict[str, list[str]]:
+        """What each scene of ``names`` that this store has built approximates, as its plugin reports
+        it in ``Scene.params["approximations"]`` (e.g. a Mitsuba feature rendered approximately);
+        scenes with none, or not built in this process, are left out."""
+        out = {}
+        for name in names:
+            scene = self._scenes.get(name)
+            notes = (getattr(scene, "params", None) or {}).get("approximations") if scene is not None else None
+            if notes:
+                out[name] = [str(n) for n in notes]
+        return out
+
     def scene_path(self, name: str) -> str | None:
         """The folder a scene was opened from, or None for a registered scene."""
         return self._opened.get(name)

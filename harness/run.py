@@ -161,7 +161,9 @@ class _Run:
             table = combine(self.tables.values())
             write_table(table, self.out / "results.parquet")
             manifest = make_manifest(self.registry, table, settings=self.plan.settings,
-                                     executor=self.executor.describe(), reused_jobs=self.reused)
+                                     executor=self.executor.describe(), reused_jobs=self.reused,
+                                     scene_approximations=self.store.scene_approximations(
+                                         sorted(set(table.scene)) if len(table) else []))
             write_manifest(manifest, self.out / "manifest.json")
         return RunOutcome(table, self.reused, self.removed, manifest)
 

@@ -50,6 +50,9 @@ SEEDS = 8
 MITSUBA_SPP = 64
 HARNESS_SPP = 36
 
+# a smooth height field (raw float EXR) for bump maps: 4 x 3 periods of a product of sines in uv
+HEIGHT = """<texture type="bitmap"><string name="filename" value="height.exr"/><boolean name="raw" value="true"/>
+        </texture>"""
 BSDFS = {
     "diffuse-textured": """<bsdf type="diffuse"><texture type="bitmap" name="reflectance">
         <string name="filename" value="checker.png"/>
@@ -85,9 +88,16 @@ BSDFS = {
         <bsdf type="diffuse"><rgb name="reflectance" value="0.1, 0.6, 0.2"/></bsdf>
         <bsdf type="roughconductor"><string name="material" value="Ag"/><float name="alpha" value="0.15"/></bsdf>
         </bsdf>""",
+    "bumpmap": f"""<bsdf type="bumpmap">{HEIGHT}<float name="scale" value="0.1"/>
+        <bsdf type="roughplastic"><float name="alpha" value="0.2"/>
+        <rgb name="diffuse_reflectance" value="0.6, 0.4, 0.2"/></bsdf></bsdf>""",
+    "twosided-bumpmap": f"""<bsdf type="twosided"><bsdf type="bumpmap">{HEIGHT}<float name="scale" value="0.1"/>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.8, 0.5, 0.3"/></bsdf></bsdf></bsdf>""",
+    "bumpmap-twosided": f"""<bsdf type="bumpmap">{HEIGHT}<float name="scale" value="0.1"/><bsdf type="twosided">
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.3, 0.5, 0.8"/></bsdf></bsdf></bsdf>""",
 }
 # the sphere is cut open (a hemisphere bowl) for the cases whose back side must show
-OPEN = {"onesided-diffuse", "twosided-two"}
+OPEN = {"onesided-diffuse", "twosided-two", "twosided-bumpmap", "bumpmap-twosided"}
 
 CAMERA = """<sensor type="perspective"><float name="fov" value="40"/>
     <transform name="to_world"><lookat origin="0.4, 1.6, 4.2" target="0, 0.6, 0" up="0, 1, 0"/></transform>
@@ -142,9 +152,22 @@ def checker_png(path) -> None:
     out.close()
 
 
+def height_exr(path) -> None:
+    """A grey float height map, ``0.5 + 0.5 sin(8 pi x) sin(6 pi y)`` on 64 x 64 texels."""
+    import OpenImageIO as oiio
+
+    y, x = np.mgrid[0:64, 0:64] / 64.0
+    h = 0.5 + 0.5 * np.sin(8 * np.pi * x) * np.sin(6 * np.pi * y)
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), oiio.ImageSpec(64, 64, 3, "float"))
+    out.write_image(np.ascontiguousarray(np.repeat(h[..., None], 3, -1).astype(np.float32)))
+    out.close()
+
+
 def write_case(folder, bsdf: str, light: str, *, open_top=False):
     sphere_obj(folder / "sphere.obj", open_top=open_top)
     checker_png(folder / "checker.png")
+    height_exr(folder / "height.exr")
     xml = f"""<scene version="3.0.0">
     <integrator type="path"><integer name="max_depth" value="{MAX_DEPTH}"/><integer name="rr_depth" value="5"/>
     </integrator>
@@ -237,13 +260,18 @@ def test_envmap_rotation_and_scale_agree_with_mitsuba(tmp_path):
         f"envmap: max |z| = {np.abs(z).max():.1f}, ratios {ratio.min():.4f}-{ratio.max():.4f}")
 
 
-@pytest.mark.parametrize("light", ["point", "directional"])
+@pytest.mark.parametrize("light", ["point", "directional", "spot"])
 def test_delta_lights_agree_with_mitsuba(tmp_path, light):
     """Mitsuba's point and directional lights (the harness's small sphere and small disc of the
-    same intensity and irradiance) lighting the rough plastic sphere on the floor, the wall behind."""
+    same intensity and irradiance) and its spot light (a delta light of the path tracer, with the
+    falloff's edge in view) lighting the rough plastic sphere on the floor, the wall behind."""
     LIGHTS[light] = {
         "point": """<emitter type="point"><point name="position" x="0.8" y="2.2" z="1.0"/>
             <rgb name="intensity" value="6, 5, 4"/></emitter>""",
+        "spot": """<emitter type="spot"><rgb name="intensity" value="9, 8, 6"/>
+            <float name="cutoff_angle" value="28"/><float name="beam_width" value="14"/>
+            <transform name="to_world"><lookat origin="0.9, 2.6, 1.4" target="-0.2, 0.3, -0.3" up="0, 1, 0"/>
+            </transform></emitter>""",
         "directional": """<emitter type="directional"><vector name="direction" x="-0.4" y="-1" z="-0.5"/>
             <rgb name="irradiance" value="3, 2.5, 2"/></emitter>""",
     }[light] + WALL

@@ -246,8 +246,9 @@ def test_nested_ids_resolve_anywhere(tmp_path):
     """A bsdf with an id inside bumpmap (and a texture with an id inside a bsdf) can be referenced."""
     (tmp_path / "scene.xml").write_text(textwrap.dedent("""\
         <scene version="0.6.0">
-          <bsdf type="bumpmap">
-            <texture type="bitmap"><string name="filename" value="h.png"/></texture>
+          <bsdf type="bumpmap" id="Bumped">
+            <texture type="scale"><float name="scale" value="0.5"/>
+              <texture type="bitmap"><string name="filename" value="h.png"/></texture></texture>
             <bsdf type="roughconductor" id="BrushedAluminium"><string name="material" value="Al"/>
               <float name="alphaU" value="0.05"/><float name="alphaV" value="0.2"/>
               <string name="distribution" value="ggx"/></bsdf>
@@ -260,6 +261,7 @@ def test_nested_ids_resolve_anywhere(tmp_path):
           <shape type="cube"><ref id="BrushedAluminium"/></shape>
           <shape type="cube"><ref id="Again"/></shape>
           <shape type="cube"><ref id="Painted"/></shape>
+          <shape type="cube"><ref id="Bumped"/></shape>
         </scene>
         """))
     with warnings.catch_warnings(record=True) as caught:
@@ -267,7 +269,9 @@ def test_nested_ids_resolve_anywhere(tmp_path):
         scene = load(tmp_path)
     messages = [str(w.message) for w in caught if issubclass(w.category, MitsubaWarning)]
     assert not any("unknown" in m for m in messages), messages
-    first, again, painted = (e["bsdf"] for e in scene.params["bsdfs"])
+    first, again, painted, bumped = (e["bsdf"] for e in scene.params["bsdfs"])
+    assert bumped["type"] == "bumpmap" and bumped["bsdf"] is first
+    assert bumped["texture"]["file"].endswith("h.png") and bumped["texture"]["scale"] == 0.5
     assert first["type"] == "roughconductor" and (first["alpha_u"], first["alpha_v"]) == (0.05, 0.2)
     assert again["bsdfs"][0]["reflectance"] == painted["reflectance"]
     assert painted["reflectance"]["uv"] == [4.0, 1.0, 0.0, 0.0]
@@ -287,8 +291,9 @@ def test_envmap_resampled_to_the_harness_convention():
 
 def test_point_and_directional_lights_keep_intensity_and_irradiance(tmp_path):
     """A point light becomes a small emitting sphere of the same intensity (projected area times
-    radiance), a directional light a small disc of the same irradiance; each approximation and the
-    skipped spot light are warned and listed in the scene's approximations."""
+    radiance), a directional light a small disc of the same irradiance; each approximation is warned
+    and listed in the scene's approximations. A spot light is exact (a delta light in
+    ``params["delta_lights"]`` with Mitsuba's defaults), so not listed."""
     (tmp_path / "scene.xml").write_text(textwrap.dedent("""\
         <scene version="3.0.0">
           <shape type="rectangle"><transform name="to_world"><scale value="3"/></transform></shape>
@@ -296,14 +301,18 @@ def test_point_and_directional_lights_keep_intensity_and_irradiance(tmp_path):
             <rgb name="intensity" value="5, 4, 3"/></emitter>
           <emitter type="directional"><vector name="direction" x="0" y="-2" z="0"/>
             <rgb name="irradiance" value="2, 1, 0.5"/></emitter>
-          <emitter type="spot"/>
+          <emitter type="spot"><transform name="to_world"><translate x="1" y="2" z="3"/></transform></emitter>
         </scene>"""))
     with pytest.warns(MitsubaWarning) as record:
         scene = load(tmp_path)
     messages = [str(w.message) for w in record]
-    for text in ("point light approximated", "directional light approximated", "spot light is not supported"):
+    for text in ("point light approximated", "directional light approximated"):
         assert any(text in m for m in messages)
         assert any(text in m for m in scene.params["approximations"])
+    assert not any("spot" in m for m in scene.params["approximations"])
+    (spot,) = scene.params["delta_lights"]
+    assert spot["position"] == [1.0, 2.0, 3.0] and spot["intensity"] == [1.0, 1.0, 1.0]
+    assert (spot["cutoff_angle"], spot["beam_width"]) == (20.0, 15.0)
     sphere = next(o for o in scene.objects if o.name.startswith("point"))
     points = np.asarray(sphere.mesh.points, float)
     radius = np.linalg.norm(points - points.mean(axis=0), axis=1).max()

@@ -156,3 +156,70 @@ def test_area_light_direct_lighting_matches_lambert(tmp_path):
     assert floor.sum() > 500
     assert np.all(np.abs(got.sum(axis=0) - expected.sum()) < 4 * error), (got.sum(axis=0) / expected.sum(), error)
     assert np.all(np.abs(got.sum(axis=0) / expected.sum() - 1) < 4e-3)
+
+
+@pytest.mark.parametrize("from_x", [1.0, -1.0])
+def test_bumpmap_tilts_the_shading_normal_by_the_height_gradient(tmp_path, from_x):
+    """A diffuse plane under ``bumpmap`` with a height ramp along u, lit by a directional light at 40
+    degrees from +x or -x, direct light only: every pixel is ``R / pi E max(<n_b, l>, 0) G`` with the
+    bump normal ``n_b = normalize(-g_u, 0, |dp/du|)`` and Mitsuba's shadowing factor ``G``
+    (``docs/pathtracer.md``); without the height the plane would be ``R / pi E cos 40``: 49% and 21% off."""
+    import OpenImageIO as oiio
+
+    ramp = np.broadcast_to((np.arange(64) * 4).astype(np.uint8)[None, :, None], (8, 64, 3))
+    out = oiio.ImageOutput.create(str(tmp_path / "ramp.png"))
+    out.open(str(tmp_path / "ramp.png"), oiio.ImageSpec(64, 8, 3, "uint8"))
+    out.write_image(np.ascontiguousarray(ramp))
+    out.close()
+    angle = np.radians(40.0)
+    light = np.array([from_x * np.sin(angle), 0.0, np.cos(angle)])
+    scene = _scene(tmp_path, f"""
+      <shape type="rectangle"><transform name="to_world"><scale value="4"/></transform>
+        <bsdf type="bumpmap"><texture type="bitmap"><string name="filename" value="ramp.png"/>
+          <boolean name="raw" value="true"/></texture><float name="scale" value="4"/>
+          <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.5, 0.5"/></bsdf></bsdf></shape>
+      <emitter type="directional"><vector name="direction" x="{-light[0]}" y="0" z="{-light[2]}"/>
+        <rgb name="irradiance" value="3, 3, 3"/></emitter>""")
+    frame = PathTracer(max_depth=2).render(scene, 0, spp=16, resolution=(8, 8))
+    g_u = 4.0 * 256.0 / 255.0  # scale x d(4 c / 255)/du with c = 64 u - 1/2
+    n_b = np.array([-g_u, 0.0, 8.0]) / np.hypot(g_u, 8.0)  # |dp/du| = 2 x 4
+    tan2_b = (g_u / 8.0) ** 2
+    a2 = min(tan2_b / 8.0, 1.0)
+    shadowing = 2.0 / (1.0 + np.sqrt(1.0 + a2 * np.tan(angle) ** 2))
+    expected = 0.5 / np.pi * 3.0 * max(float(n_b @ light), 0.0) * shadowing
+    np.testing.assert_allclose(frame["color"].astype(np.float64), expected, rtol=5e-3)
+
+
+def test_spot_light_direct_lighting_matches_its_closed_form(tmp_path):
+    """A ``spot`` above a diffuse floor, direct light only: each pixel is ``R / pi I f(theta) cos_s / d^2``
+    (``f``: Mitsuba's falloff, 1 within ``beam_width``, linear in the angle to 0 at ``cutoff_angle``);
+    the spot is a delta light, so the estimate is exact up to float rounding, inside, across and
+    outside the falloff ring."""
+    (tmp_path / "scene.xml").write_text(textwrap.dedent("""\
+      <scene version="3.0.0">
+      <sensor type="perspective"><float name="fov" value="60"/>
+        <transform name="to_world"><lookat origin="0, 3, 0.01" target="0, 0, 0" up="0, 0, -1"/></transform></sensor>
+      <shape type="rectangle"><transform name="to_world"><scale value="3"/><rotate x="1" angle="-90"/></transform>
+        <bsdf type="diffuse"><rgb name="reflectance" value="0.5, 0.5, 0.5"/></bsdf></shape>
+      <emitter type="spot"><rgb name="intensity" value="4, 3, 2"/><float name="cutoffAngle" value="30"/>
+        <float name="beamWidth" value="12"/>
+        <transform name="toWorld"><lookat origin="0.3, 1.5, 0.2" target="0.6, 0, -0.1" up="0, 0, 1"/></transform>
+      </emitter></scene>"""))
+    scene = load(tmp_path)
+    assert not any("spot" in m for m in scene.params["approximations"]), scene.params["approximations"]
+    frame = PathTracer(max_depth=2).render(scene, 0, spp=2, channels={"position"}, resolution=(24, 24))
+    position = frame["position"].astype(np.float64)
+    floor = np.isfinite(position).all(axis=-1) & (np.abs(position[..., 1]) < 1e-4)
+    apex = np.array([0.3, 1.5, 0.2])
+    axis = np.array([0.6, 0.0, -0.1]) - apex
+    axis /= np.linalg.norm(axis)
+    to_point = position[floor] - apex
+    d = np.linalg.norm(to_point, axis=-1)
+    theta = np.arccos(np.clip(to_point @ axis / d, -1.0, 1.0))
+    cutoff, beam = np.radians(30.0), np.radians(12.0)
+    falloff = np.where(theta <= beam, 1.0, np.clip((cutoff - theta) / (cutoff - beam), 0.0, None))
+    cos_s = -to_point[:, 1] / d
+    expected = 0.5 / np.pi * np.array([4.0, 3.0, 2.0]) * (falloff * cos_s / d**2)[:, None]
+    assert floor.sum() > 300 and (falloff == 1.0).sum() > 10 and ((falloff > 0) & (falloff < 1)).sum() > 10
+    assert (falloff == 0).sum() > 10
+    np.testing.assert_allclose(frame["color"].astype(np.float64)[floor], expected, rtol=1e-4, atol=1e-6)

@@ -39,11 +39,11 @@ from .bsdf import (
     is_delta,
     is_transmissive,
 )
-from .lights import infinite_pdf, infinite_radiance, sample_light
+from .lights import DELTA_LIGHT, infinite_pdf, infinite_radiance, sample_light
 from .materials import HAS_MASK, ONE_SIDED_EMISSION
 from .rng import stream_key, uniform
 from .schedule import take
-from .shading import node_colour, resolve, transparent
+from .shading import bump_normal, bump_shadowing, node_colour, resolve, transparent
 from .traverse import closest_hit, occluded, stack_size
 from .vecmath import cross, dot, normalize, onb, to_local, to_world
 
@@ -133,14 +133,16 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
         base = 8 * bounce
         front = dot(ns, wo) > 0.0
         root = mat_root[m]
+        bump = -1
+        bump_outside = False
         if node_kind[root] < TWOSIDED:  # a bare BSDF, or twosided around one: no walk, no random number
             leaf, two_sided = root, False
         elif node_kind[root] == TWOSIDED and node_kind[ni[root, I_CHILD0]] < TWOSIDED and (
                 front or ni[root, I_CHILD1] == ni[root, I_CHILD0]):
             leaf, two_sided = ni[root, I_CHILD0], True
         else:
-            leaf, two_sided = resolve(root, front, uniform(key, base + 7), tu, tv, node_kind, nf, ni,
-                                      tex_data, tex_off, tex_w, tex_h, tex_uv)
+            leaf, two_sided, bump, bump_outside = resolve(root, front, uniform(key, base + 7), tu, tv, node_kind,
+                                                          nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
         if leaf < 0:  # through a mask: a null interaction, as a delta lobe of weight 1
             wi = d
             wr = wg = wb = 1.0
@@ -161,6 +163,10 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                 n = ns if dot(ns, ng) >= 0.0 else (-ns[0], -ns[1], -ns[2])
                 if dot(n, wo) <= 1e-9:
                     n = ng
+            n0 = n
+            if bump >= 0:  # the bump-mapped normal (a bumpmap around twosided: seen from behind, its mirror)
+                n = bump_normal(bump, two_sided and bump_outside and not front, n, ng, wo, tri, tu, tv, tri_v,
+                                tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             ca = node_colour(leaf, I_TEX_A, F_A, tu, tv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             cb = node_colour(leaf, I_TEX_B, F_B, tu, tv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             t_ax, s_ax = onb(n)
@@ -176,6 +182,9 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                     if side_l > 0.0 or (transmissive and side_l < 0.0):
                         wi_l = to_local(ld, t_ax, s_ax, n)
                         fr, fg, fb, fpdf = bsdf_eval(kind, leaf, nf, ni, tables, ca, cb, wo_l, wi_l)
+                        if bump >= 0:
+                            sh = bump_shadowing(n0, n, ld)
+                            fr, fg, fb = fr * sh, fg * sh, fb * sh
                         visible = False
                         if (fr > 0.0 or fg > 0.0 or fb > 0.0) or bounce == 0:
                             off = eps if side_l > 0.0 else -eps
@@ -188,7 +197,7 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                                 vhits += 1
                             if fr > 0.0 or fg > 0.0 or fb > 0.0:
                                 w = 1.0
-                                if strategy == MIS:
+                                if strategy == MIS and ltri != DELTA_LIGHT:
                                     w = lpdf * lpdf / (lpdf * lpdf + fpdf * fpdf)
                                 k = w / lpdf
                                 cr, cg, cb_ = tr * fr * le[0] * k, tg * fg * le[1] * k, tb * fb * le[2] * k
@@ -205,6 +214,11 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
             if not (wr > 0.0 or wg > 0.0 or wb > 0.0):
                 break
             wi = to_world(wi_l, t_ax, s_ax, n)
+            if bump >= 0:
+                sh = bump_shadowing(n0, n, wi)
+                wr, wg, wb = wr * sh, wg * sh, wb * sh
+                if sh <= 0.0:
+                    break
             cos_gi = dot(wi, ng)
             if (wi_l[2] * wo_l[2] > 0.0) != (cos_gi * cos_go > 0.0) or cos_gi == 0.0:
                 break

@@ -1,4 +1,4 @@
-"""Light sources: emissive triangles, the sun (a cone of directions) and the environment.
+"""Light sources: emissive triangles, the sun (a cone of directions), the environment and delta lights.
 
 Next-event estimation first picks a light group with probabilities proportional to estimated
 power (emissive triangles: ``2 pi A L`` where both faces emit, ``pi A L`` for one-sided emitters;
@@ -7,6 +7,15 @@ the radius of the scene's bounding sphere), then a triangle in proportion to its
 luminance of emission) and a uniform point on it, a uniform direction in the sun's cone, or a
 direction from the environment (piecewise-constant importance sampling of luminance x
 sin(theta) for maps, uniform on the sphere for the constant and sky kinds).
+
+Delta lights (Mitsuba's ``spot``; ``Scene.params["delta_lights"]``) are a point each, of radiant
+intensity ``I f(theta)`` towards a direction at angle ``theta`` from the spot's axis (``f``:
+Mitsuba's falloff, 1 inside ``beam_width``, ``(cutoff - theta) / (cutoff - beam_width)`` out to
+``cutoff_angle``, 0 beyond); a group of their own chosen in proportion to ``I 2 pi (1 - cos
+cutoff)``, then one in proportion to that too. Only next-event estimation reaches them: their
+sample's pdf is the discrete probability of choosing the light, its MIS weight 1 (the triangle
+returned is :data:`DELTA_LIGHT`), and BSDF sampling never hits them (``strategy="bsdf"`` does not
+see them, as in any renderer).
 
 Sun and environment are treated as one infinite light: a direction that leaves the scene gets
 the sum of their radiances, and its light pdf is the mixture ``p_sun pdf_sun + p_env pdf_env``.
@@ -28,7 +37,15 @@ from .vecmath import onb, to_world
 # indices into the float64 light-parameter vector ``lp``
 SUN_DIR, SUN_COS, SUN_RAD, P_SUN = 0, 3, 4, 7
 ENV_KIND, ENV_RAD, ENV_HORIZON, P_ENV, P_TRI, ENV_ROT = 8, 9, 12, 15, 16, 17
-N_PARAMS = 18
+P_DELTA, N_DELTA = 18, 19
+N_PARAMS = 20
+# after the N_PARAMS fixed entries, DELTA_STRIDE per delta light: position (3), world-to-local matrix
+# (9, row-major; local +z is the spot's axis), intensity (3), cos(cutoff), cos(beam width), cutoff
+# (radians), 1 / (cutoff - beam width), cumulative choice probability up to this light
+D_POS, D_TO_LOCAL, D_INTENSITY = 0, 3, 12
+D_COS_CUTOFF, D_COS_BEAM, D_CUTOFF, D_INV_TRANSITION, D_CDF = 15, 16, 17, 18, 19
+DELTA_STRIDE = 20
+DELTA_LIGHT = -2  # the "triangle" of a delta light's sample
 ENV_NONE, ENV_CONSTANT, ENV_SKY, ENV_MAP = -1, 0, 1, 2
 MIN_SUN_RADIUS_DEG = 0.01
 
@@ -169,6 +186,8 @@ def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_fro
             return zero, 0.0, zero, 0.0, -1
         le = (np.float64(mat_emit[m, 0]), np.float64(mat_emit[m, 1]), np.float64(mat_emit[m, 2]))
         return d, dist, le, tri_light_pdf[t] * d2 / cos_l, t
+    if u0 >= lp[P_TRI] + lp[P_SUN] and u0 < lp[P_TRI] + lp[P_SUN] + lp[P_DELTA]:
+        return sample_delta((u0 - lp[P_TRI] - lp[P_SUN]) / lp[P_DELTA], p, lp)
     if u0 < lp[P_TRI] + lp[P_SUN]:
         ct = 1.0 - u1 * (1.0 - lp[SUN_COS])
         st = math.sqrt(max(1.0 - ct * ct, 0.0))
@@ -201,6 +220,74 @@ def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_fro
     if pdf <= 0.0:
         return zero, 0.0, zero, 0.0, -1
     return d, np.inf, infinite_radiance(d, lp, env_img), pdf, -1
+
+
+@njit(cache=True, error_model="numpy")
+def sample_delta(u, p, lp):
+    """One of the delta lights chosen by ``u`` in [0, 1), as seen from ``p`` (see :func:`sample_light`).
+
+    The radiance returned is ``I f(theta) / dist^2``, Mitsuba's ``spot`` ``sample_direction``.
+    """
+    zero = (0.0, 0.0, 0.0)
+    count = int(lp[N_DELTA])
+    j = 0
+    while j < count - 1 and u >= lp[N_PARAMS + j * DELTA_STRIDE + D_CDF]:
+        j += 1
+    b = N_PARAMS + j * DELTA_STRIDE
+    prob = lp[b + D_CDF] - (lp[b - DELTA_STRIDE + D_CDF] if j > 0 else 0.0)
+    dx, dy, dz = lp[b + D_POS] - p[0], lp[b + D_POS + 1] - p[1], lp[b + D_POS + 2] - p[2]
+    d2 = dx * dx + dy * dy + dz * dz
+    if not (d2 > 0.0 and prob > 0.0):
+        return zero, 0.0, zero, 0.0, -1
+    dist = math.sqrt(d2)
+    d = (dx / dist, dy / dist, dz / dist)
+    m = b + D_TO_LOCAL  # the light's local direction towards p: to_local (-d)
+    lx = -(lp[m] * d[0] + lp[m + 1] * d[1] + lp[m + 2] * d[2])
+    ly = -(lp[m + 3] * d[0] + lp[m + 4] * d[1] + lp[m + 5] * d[2])
+    lz = -(lp[m + 6] * d[0] + lp[m + 7] * d[1] + lp[m + 8] * d[2])
+    norm = math.sqrt(lx * lx + ly * ly + lz * lz)
+    if not norm > 0.0:
+        return zero, 0.0, zero, 0.0, -1
+    cos_t = lz / norm
+    if not cos_t > lp[b + D_COS_CUTOFF]:
+        return zero, 0.0, zero, 0.0, -1
+    falloff = 1.0
+    if cos_t < lp[b + D_COS_BEAM]:
+        falloff = (lp[b + D_CUTOFF] - math.acos(min(cos_t, 1.0))) * lp[b + D_INV_TRANSITION]
+    k = falloff / d2
+    le = (lp[b + D_INTENSITY] * k, lp[b + D_INTENSITY + 1] * k, lp[b + D_INTENSITY + 2] * k)
+    return d, dist, le, lp[P_DELTA] * prob, DELTA_LIGHT
+
+
+def delta_light_params(lights: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """The ``lp`` entries of delta lights (``Scene.params["delta_lights"]``) and each light's power.
+
+    Each light: ``{"type": "spot", "position": [3], "to_local": [[3] x 3], "intensity": [3],
+    "cutoff_angle": degrees, "beam_width": degrees}``.
+
+    Returns
+    -------
+    block : ndarray (DELTA_STRIDE * len(lights),) float64
+        Without the cumulative probabilities (set by the caller from the powers).
+    power : ndarray (len(lights),) float64
+        ``luminance(I) 2 pi (1 - cos cutoff)``, the flux of a spot without falloff.
+    """
+    block = np.zeros(DELTA_STRIDE * len(lights))
+    power = np.zeros(len(lights))
+    for j, light in enumerate(lights):
+        b = j * DELTA_STRIDE
+        cutoff = math.radians(float(light["cutoff_angle"]))
+        beam = min(math.radians(float(light["beam_width"])), cutoff)
+        block[b + D_POS:b + D_POS + 3] = light["position"]
+        block[b + D_TO_LOCAL:b + D_TO_LOCAL + 9] = np.asarray(light["to_local"], float).reshape(9)
+        block[b + D_INTENSITY:b + D_INTENSITY + 3] = light["intensity"]
+        block[b + D_COS_CUTOFF] = math.cos(cutoff)
+        block[b + D_COS_BEAM] = math.cos(beam)
+        block[b + D_CUTOFF] = cutoff
+        block[b + D_INV_TRANSITION] = 1.0 / (cutoff - beam) if cutoff > beam else 0.0
+        lum = float(np.asarray(light["intensity"], float) @ np.array([0.2126, 0.7152, 0.0722]))
+        power[j] = max(lum, 0.0) * 2.0 * math.pi * (1.0 - math.cos(cutoff))
+    return block, power
 
 
 def environment_tables(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -100,8 +100,9 @@ class _Builder:
             img = self.image(("file", value["file"], bool(value["raw"])),
                              lambda: read_description_texture(value["file"], raw=bool(value["raw"])))
             self.i[n][slot] = self.texture(img, value.get("uv", (1.0, 1.0, 0.0, 0.0)))
-            self.f[n][column:column + 3] = 1.0
-            return float(self.images[img].mean())
+            scale = float(value.get("scale", 1.0))
+            self.f[n][column:column + 3] = scale
+            return scale * float(self.images[img].mean())
         rgb = np.broadcast_to(np.asarray(value, float), 3)
         self.f[n][column:column + 3] = rgb
         return float(rgb.mean())
@@ -150,6 +151,9 @@ class _Builder:
             if kind == "mask":
                 self.has_mask = True
                 self.scalar(n, d["opacity"])
+            else:  # the height texture in slot S, its luminance read; the gradient multiplier in F_AU
+                self.colour(n, B.I_TEX_S, B.F_S, d["texture"])
+                self.f[n][B.F_AU] = float(d["scale"]) * self.f[n][B.F_S]
             self.i[n][B.I_CHILD0] = self.describe(d["bsdf"])
             return n
         if kind == "blendbsdf":

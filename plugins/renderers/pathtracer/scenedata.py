@@ -180,11 +180,20 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
         lp[L.ENV_HORIZON:L.ENV_HORIZON + 3] = env.horizon
         lp[L.ENV_ROT] = math.radians(env.rotation)
         env_power = far * _env_integral(scene, env_img)
-    total = tri_power + sun_power + env_power
+    delta, delta_each = L.delta_light_params(scene.params.get("delta_lights") or [])
+    delta_power = float(delta_each.sum())
+    total = tri_power + sun_power + env_power + delta_power
     if total > 0:
         lp[L.P_TRI] = tri_power / total
         lp[L.P_SUN] = sun_power / total
         lp[L.P_ENV] = env_power / total
+        lp[L.P_DELTA] = delta_power / total
+    if delta_power > 0:
+        cdf = np.cumsum(delta_each) / delta_power
+        cdf[-1] = 1.0
+        delta[L.D_CDF::L.DELTA_STRIDE] = cdf
+        lp[L.N_DELTA] = len(delta_each)
+        lp = np.concatenate([lp, delta])
     tri_light_pdf = np.zeros(len(tri_v))
     if tri_power > 0:
         p_each = power[emitters] / tri_power

@@ -10,7 +10,9 @@ one leaf BSDF with Mitsuba's wrapper semantics:
   else the nested BSDF; ``opacity`` of a colour texture is its luminance (Mitsuba's ``eval_1``).
 - ``blendbsdf``: the second child with probability ``weight``, else the first, so that in
   expectation ``f = (1 - weight) f_0 + weight f_1``.
-- ``bumpmap``: the nested BSDF (the height texture is not applied; the loader warns).
+- ``bumpmap``: the nested BSDF, shaded with the normal :func:`bump_normal` makes from the height
+  texture's gradient; :func:`bump_shadowing` is the factor Mitsuba 3 applies to the scattered light
+  (``docs/pathtracer.md`` has the equations).
 
 One uniform number chooses; it is rescaled at each choice so that nested choices stay uniform.
 """
@@ -22,7 +24,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .bsdf import BLEND, BUMP, F_S, I_CHILD0, I_CHILD1, I_TEX_S, MASK, TWOSIDED
+from .bsdf import BLEND, BUMP, F_AU, F_S, I_CHILD0, I_CHILD1, I_TEX_S, MASK, TWOSIDED
 
 
 @njit(cache=True, error_model="numpy")
@@ -99,9 +101,15 @@ def resolve(root, front, u_sel, u, v, node_kind, nf, ni, tex_data, tex_off, tex_
         Node of the BSDF (-1: passed through a mask).
     two_sided : bool
         Whether a ``twosided`` wrapper holds the leaf.
+    bump : int
+        The ``bumpmap`` node on the way (the innermost one), or -1.
+    bump_outside : bool
+        Whether that ``bumpmap`` holds the ``twosided`` wrapper (rather than the reverse).
     """
     node = root
     two_sided = False
+    bump = -1
+    bump_outside = False
     for _ in range(16):
         kind = node_kind[node]
         if kind == TWOSIDED:
@@ -110,7 +118,7 @@ def resolve(root, front, u_sel, u, v, node_kind, nf, ni, tex_data, tex_off, tex_
         elif kind == MASK:
             o = node_scalar(node, u, v, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
             if not u_sel < o:
-                return -1, two_sided
+                return -1, two_sided, bump, bump_outside
             u_sel = u_sel / o
             node = ni[node, I_CHILD0]
         elif kind == BLEND:
@@ -122,10 +130,138 @@ def resolve(root, front, u_sel, u, v, node_kind, nf, ni, tex_data, tex_off, tex_
                 u_sel = (u_sel - w) / (1.0 - w) if w < 1.0 else 0.0
                 node = ni[node, I_CHILD0]
         elif kind == BUMP:
+            bump = node
+            bump_outside = not two_sided
             node = ni[node, I_CHILD0]
         else:
-            return node, two_sided
-    return node, two_sided
+            return node, two_sided, bump, bump_outside
+    return node, two_sided, bump, bump_outside
+
+
+@njit(cache=True, error_model="numpy")
+def tex_gradient(k, u, v, tex_data, tex_off, tex_w, tex_h, tex_uv):
+    """Gradient ``(dH/du, dH/dv)`` in harness uv of texture ``k``'s luminance ``H``, bilinearly
+    interpolated as :func:`tex_rgb` reads it (the derivative of the bilinear blend, times the
+    texel counts and the uv scale: Mitsuba's ``eval_1_grad`` of a bitmap)."""
+    w = tex_w[k]
+    h = tex_h[k]
+    off = tex_off[k]
+    us = u * tex_uv[k, 0] + tex_uv[k, 2]
+    vs = v * tex_uv[k, 1] + tex_uv[k, 3]
+    x = (us - math.floor(us)) * w - 0.5
+    y = (1.0 - (vs - math.floor(vs))) * h - 0.5
+    if not (math.isfinite(x) and math.isfinite(y)):
+        return 0.0, 0.0
+    x0 = math.floor(x)
+    y0 = math.floor(y)
+    fx = x - x0
+    fy = y - y0
+    i0 = int(x0) % w
+    j0 = int(y0) % h
+    i1 = (i0 + 1) % w
+    j1 = (j0 + 1) % h
+    a00 = _luminance_at(tex_data, off + (j0 * w + i0) * 3)
+    a01 = _luminance_at(tex_data, off + (j0 * w + i1) * 3)
+    a10 = _luminance_at(tex_data, off + (j1 * w + i0) * 3)
+    a11 = _luminance_at(tex_data, off + (j1 * w + i1) * 3)
+    d_fx = (1.0 - fy) * (a01 - a00) + fy * (a11 - a10)
+    d_fy = (1.0 - fx) * (a10 - a00) + fx * (a11 - a01)
+    # x = frac(us) w - 1/2, y = (1 - frac(vs)) h - 1/2: dx/du = w su, dy/dv = -h sv
+    return d_fx * w * tex_uv[k, 0], -d_fy * h * tex_uv[k, 1]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _luminance_at(tex_data, k):
+    return 0.2126 * tex_data[k] + 0.7152 * tex_data[k + 1] + 0.0722 * tex_data[k + 2]
+
+
+@njit(cache=True, error_model="numpy")
+def bump_normal(node, mirrored, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h,
+                tex_uv):
+    """The shading normal of ``bumpmap`` node ``node`` at a point of triangle ``tri``.
+
+    ``mirrored``: the bump of the opposite frame, negated (``-bump(-n)``), for a ``bumpmap``
+    holding a ``twosided`` seen from behind (see ``docs/pathtracer.md``); else :func:`_bump`.
+    """
+    if mirrored:
+        b = _bump(node, (-n[0], -n[1], -n[2]), ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w,
+                  tex_h, tex_uv)
+        return -b[0], -b[1], -b[2]
+    return _bump(node, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv)
+
+
+@njit(cache=True, error_model="numpy")
+def _bump(node, n, ng, wo, tri, u, v, tri_v, tri_uv, nf, ni, tex_data, tex_off, tex_w, tex_h, tex_uv):
+    """Mitsuba 3's bump-mapped shading normal at a point of triangle ``tri``.
+
+    With the triangle's ``dp/du``, ``dp/dv`` and the scaled height gradient ``(g_u, g_v)``:
+    ``dp/du' = dp/du + n (g_u - <n, dp/du>)`` (likewise for v), ``n_b = normalize(dp/du' x dp/dv')``
+    turned to the side of ``ng``; where the viewer ``wo`` lies on different sides of ``n`` and ``n_b``,
+    ``n_b``'s tangential part is mirrored (``2 <n_b, n> n - n_b``, Mitsuba's ``flip_invalid_normals``).
+
+    Parameters
+    ----------
+    node : int
+    n, ng : 3-tuples
+        Unit shading and geometric normals (``ng`` is turned to ``n``'s side here).
+    wo : 3-tuple
+        Unit direction towards the viewer.
+    tri : int
+    u, v : float
+        Harness uv of the point.
+    """
+    k = ni[node, I_TEX_S]
+    if k < 0:
+        return n
+    gu, gv = tex_gradient(k, u, v, tex_data, tex_off, tex_w, tex_h, tex_uv)
+    gu *= nf[node, F_AU]
+    gv *= nf[node, F_AU]
+    e1 = (np.float64(tri_v[tri, 3]) - tri_v[tri, 0], np.float64(tri_v[tri, 4]) - tri_v[tri, 1],
+          np.float64(tri_v[tri, 5]) - tri_v[tri, 2])
+    e2 = (np.float64(tri_v[tri, 6]) - tri_v[tri, 0], np.float64(tri_v[tri, 7]) - tri_v[tri, 1],
+          np.float64(tri_v[tri, 8]) - tri_v[tri, 2])
+    du1 = np.float64(tri_uv[tri, 2]) - tri_uv[tri, 0]
+    dv1 = np.float64(tri_uv[tri, 3]) - tri_uv[tri, 1]
+    du2 = np.float64(tri_uv[tri, 4]) - tri_uv[tri, 0]
+    dv2 = np.float64(tri_uv[tri, 5]) - tri_uv[tri, 1]
+    det = du1 * dv2 - dv1 * du2
+    if not (det != 0.0 and math.isfinite(det)):
+        return n
+    inv = 1.0 / det
+    dpdu = ((dv2 * e1[0] - dv1 * e2[0]) * inv, (dv2 * e1[1] - dv1 * e2[1]) * inv, (dv2 * e1[2] - dv1 * e2[2]) * inv)
+    dpdv = ((du1 * e2[0] - du2 * e1[0]) * inv, (du1 * e2[1] - du2 * e1[1]) * inv, (du1 * e2[2] - du2 * e1[2]) * inv)
+    a = gu - (n[0] * dpdu[0] + n[1] * dpdu[1] + n[2] * dpdu[2])
+    b = gv - (n[0] * dpdv[0] + n[1] * dpdv[1] + n[2] * dpdv[2])
+    pu = (dpdu[0] + n[0] * a, dpdu[1] + n[1] * a, dpdu[2] + n[2] * a)
+    pv = (dpdv[0] + n[0] * b, dpdv[1] + n[1] * b, dpdv[2] + n[2] * b)
+    c = (pu[1] * pv[2] - pu[2] * pv[1], pu[2] * pv[0] - pu[0] * pv[2], pu[0] * pv[1] - pu[1] * pv[0])
+    side = 1.0 if ng[0] * n[0] + ng[1] * n[1] + ng[2] * n[2] >= 0.0 else -1.0
+    if side * (ng[0] * c[0] + ng[1] * c[1] + ng[2] * c[2]) < 0.0:
+        c = (-c[0], -c[1], -c[2])
+    if (wo[0] * n[0] + wo[1] * n[1] + wo[2] * n[2]) * (wo[0] * c[0] + wo[1] * c[1] + wo[2] * c[2]) <= 0.0:
+        cn = 2.0 * (c[0] * n[0] + c[1] * n[1] + c[2] * n[2])
+        c = (cn * n[0] - c[0], cn * n[1] - c[1], cn * n[2] - c[2])
+    length = math.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2])
+    if not (length > 0.0 and math.isfinite(length)):
+        return n
+    return c[0] / length, c[1] / length, c[2] / length
+
+
+@njit(cache=True, error_model="numpy")
+def bump_shadowing(n, nb, w):
+    """Factor on light scattered along ``w`` by a bump-mapped BSDF of normal ``nb`` over ``n``.
+
+    0 where ``w`` lies on different sides of ``n`` and ``nb`` (Mitsuba's bumpmap makes such light
+    black); else the shadowing of Estevez et al. (Ray Tracing Gems, 2019) that Mitsuba 3 applies,
+    ``2 / (1 + sqrt(1 + a^2 tan^2 theta_w))`` with ``a^2 = min(tan^2 theta_b / 8, 1)``, both angles
+    measured from ``n``.
+    """
+    cw = w[0] * n[0] + w[1] * n[1] + w[2] * n[2]
+    if cw * (w[0] * nb[0] + w[1] * nb[1] + w[2] * nb[2]) <= 0.0:
+        return 0.0
+    cb = nb[0] * n[0] + nb[1] * n[1] + nb[2] * n[2]
+    a2 = min(0.125 * (1.0 - cb * cb) / (cb * cb), 1.0) if cb * cb > 0.0 else 1.0
+    return 2.0 / (1.0 + math.sqrt(1.0 + a2 * max(1.0 - cw * cw, 0.0) / (cw * cw)))
 
 
 @njit(cache=True, error_model="numpy")

@@ -7,7 +7,8 @@ A Mitsuba ``<bsdf>`` element becomes two things:
   "distribution": "ggx", "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": True,
   "diffuse_reflectance": ..., "specular_reflectance": ...}``; wrappers hold ``"bsdf"`` or
   ``"bsdfs"``). A colour or scalar parameter is a number, an ``[r, g, b]`` list, or a texture
-  ``{"file": path, "raw": bool, "digest": sha256 of the file, "uv": [su, sv, ou, ov]}``. The
+  ``{"file": path, "raw": bool, "digest": sha256 of the file, "uv": [su, sv, ou, ov]}`` (plus
+  ``"scale": s`` where a ``scale`` texture wraps the bitmap). The
   loader stores the descriptions in ``Scene.params["bsdfs"]`` (one per material, ``None`` for
   none); a renderer that knows them (the path tracer) renders Mitsuba's semantics;
 - a :class:`harness.Material` of one of the harness kinds, for renderers that only know those
@@ -158,6 +159,13 @@ def texture(node: ET.Element, ctx: BsdfContext, default):
         b = color_value(b) if b is not None else (0.2,) * 3
         warn("checkerboard texture approximated by the mean of its two colours")
         return [float(v) for v in (np.asarray(a) + np.asarray(b)) / 2]
+    if kind == "scale":
+        inner = next((_resolve(c, ctx) for c in node if _resolve(c, ctx).tag == "texture"), None)
+        value = texture(inner, ctx, default) if inner is not None else default
+        factor = get_float(node, "scale", 1.0)
+        if isinstance(value, dict):
+            return {**value, "scale": factor * value.get("scale", 1.0)}
+        return value if value is None else [float(v) * factor for v in np.broadcast_to(np.asarray(value, float), 3)]
     warn(f"texture type {kind!r} is not supported; using {default}")
     return default
 
@@ -215,7 +223,9 @@ def _describe(node: ET.Element, ctx: BsdfContext) -> dict:
             child = _resolve(child, ctx)
             if child.tag == "texture":
                 height = texture(child, ctx, None)
-        warn("bumpmap: the height texture is not applied (the nested bsdf is rendered with unperturbed normals)")
+        if not isinstance(height, dict):
+            warn("bumpmap without a bitmap height texture: the nested bsdf is rendered with unperturbed normals")
+            return children[0]
         return {"type": "bumpmap", "texture": height, "scale": get_float(node, "scale", 1.0), "bsdf": children[0]}
     if kind == "diffuse":
         return {"type": "diffuse", "reflectance": spectrum(node, "reflectance", ctx, 0.5)}

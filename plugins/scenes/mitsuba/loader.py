@@ -12,7 +12,7 @@ import numpy as np
 from harness import Material, Scene, SceneObject
 
 from .bsdfs import BsdfContext, describe, has_texture, is_glossy, material
-from .emitters_sensor import camera, environment_and_sun, point_light
+from .emitters_sensor import camera, environment_and_sun, point_light, spot_light
 from .shapes import load_shape, sphere, to_polydata
 from .xmlscene import MitsubaWarning, get_color, parse, version, warn
 
@@ -51,7 +51,8 @@ def load(path: Path, name: str | None = None) -> Scene:
     Unsupported elements and approximations are reported with :class:`MitsubaWarning`, and the
     distinct messages are kept in ``scene.params["approximations"]`` (for the run's manifest);
     nothing is fatal except an unreadable file. Every material's Mitsuba BSDF is described in
-    ``scene.params["bsdfs"]`` (see :mod:`.bsdfs`).
+    ``scene.params["bsdfs"]`` (see :mod:`.bsdfs`), spot lights in ``scene.params["delta_lights"]``
+    (see :func:`.emitters_sensor.spot_light`).
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MitsubaWarning)
@@ -103,6 +104,7 @@ def _load(path: Path, name: str | None) -> Scene:
     film = (768, 576)
     cache: dict = {}
     points = []
+    delta_lights: list[dict] = []
     for node in root:
         tag = node.tag
         if tag == "shape":
@@ -123,6 +125,8 @@ def _load(path: Path, name: str | None) -> Scene:
                                        material=index))
         elif tag == "emitter" and node.get("type") == "point":
             points.append(node)
+        elif tag == "emitter" and node.get("type") == "spot":
+            delta_lights.append(spot_light(node))
         elif tag == "emitter":
             env, s = environment_and_sun(node, folder)
             environment = env or environment
@@ -154,6 +158,8 @@ def _load(path: Path, name: str | None) -> Scene:
         tags.add("textured")
     if sun is not None:
         tags.add("sun")
+    if delta_lights:
+        tags.add("spot")
     if environment is not None:
         tags.add("sky" if environment.kind == "sky" else "environment")
     return Scene(
@@ -167,7 +173,7 @@ def _load(path: Path, name: str | None) -> Scene:
         environment=environment,
         camera=cam,
         params={"format": "mitsuba", "version": ".".join(map(str, version(root))), "file": xml_path.name,
-                "film_resolution": list(film), "bsdfs": table.entries},
+                "film_resolution": list(film), "bsdfs": table.entries, "delta_lights": delta_lights},
         max_depth=5,
         source=str(folder),
     )

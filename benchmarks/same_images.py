@@ -1,0 +1,58 @@
+"""Whether the path tracer renders the third-party Mitsuba scenes bit for bit as an earlier copy did.
+
+    git archive REV | tar -x -C /tmp/before
+    python benchmarks/same_images.py --baseline /tmp/before [--width 64 --height 36 --spp 4 --max-depth 8]
+
+Loads ``classroom``, ``living-room`` and ``sponza`` from ``../shared/scenes`` with this project's
+Mitsuba loader and with the copy's, renders each with both path tracers (same seed, spp and
+resolution) and prints, per scene, whether colour and variance are bit-identical and the largest
+difference. Used where a change must leave those scenes' images (and so their region ratios to
+Mitsuba 3, ``docs/pathtracer.md``) as they were.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from bench_pathtracer import baseline  # noqa: E402
+
+from plugins.renderers.pathtracer import PathTracer  # noqa: E402
+from plugins.scenes.mitsuba import load  # noqa: E402
+
+SCENES = ("classroom", "living-room", "sponza")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--baseline", type=Path, required=True, help="folder with a copy of an earlier project")
+    parser.add_argument("--width", type=int, default=64)
+    parser.add_argument("--height", type=int, default=36)
+    parser.add_argument("--spp", type=int, default=4)
+    parser.add_argument("--max-depth", type=int, default=8)
+    args = parser.parse_args()
+    old_tracer, old_load = baseline(args.baseline.resolve())
+    warnings.simplefilter("ignore")
+    root = Path(__file__).resolve().parent.parent.parent / "shared" / "scenes"
+    for name in SCENES:
+        folder = root / name
+        if not folder.is_dir():
+            print(f"{name}: not found beside the project, skipped")
+            continue
+        kwargs = dict(spp=args.spp, seed=1, channels={"variance"}, resolution=(args.width, args.height))
+        new = PathTracer(max_depth=args.max_depth).render(load(folder), 0, **kwargs)
+        old = old_tracer(max_depth=args.max_depth).render(old_load(folder), 0, **kwargs)
+        same = all(np.array_equal(new[k], old[k], equal_nan=True) for k in ("color", "variance"))
+        diff = float(np.nanmax(np.abs(new["color"].astype(np.float64) - old["color"])))
+        print(f"{name}: {'bit-identical' if same else 'different'} (largest colour difference {diff:.3g})")
+
+
+if __name__ == "__main__":
+    main()
