@@ -2,7 +2,7 @@
 
 The floor of a filter reads every input buffer the filter receives (the channels it declares,
 ``requires`` and ``optional``, that the frame holds; ``color`` always) once and writes one
-float32 RGB output frame, on the same threads (a Numba parallel kernel, rows in bands). A
+float32 RGB output frame, on the same threads (a Numba parallel kernel over rows). A
 temporal filter must also read its history: its floor keeps its own previous output and reads
 it as one more RGB frame (the least history any temporal filter keeps; a filter that keeps more,
 e.g. moments or previous guides, has a floor set a little low). Every output value is the sum
@@ -22,92 +22,71 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-#: rows are dealt in at most this many bands (each band allocates its row accumulators once)
-BANDS = 64
+#: compiled kernels by input layout (see :func:`floor_kernel`)
+_KERNELS: dict = {}
 
 
-@njit(parallel=True, cache=True)
-def _floor_kernel(planes, n_planes, maps, n_maps, counts, n_counts, out):
-    """``out[i, j, c]`` = the sum over ``planes`` of component ``c`` (3-component planes) plus
-    the sum of every other value of pixel (i, j): other planes' components, ``maps``, ``counts``.
+def floor_kernel(layout: tuple):
+    """The compiled floor kernel for inputs of ``layout``: one ``(ndim, components, is_int)`` per array.
 
-    ``planes``: tuple of read-only (H, W, C) float32 arrays, the first ``n_planes`` used;
-    ``maps``: (H, W) float32, ``counts``: (H, W) int32, likewise. Rows are cut into bands, one
-    parallel iteration each; every input value is read once and every output value written once.
+    The kernel takes the arrays in that order and the (H, W, 3) float32 output, and writes
+    ``out[i, j, c]`` = the sum of component ``c`` of every 3-component input plus the sum of
+    every other input value of pixel (i, j) (one-component maps, int32 counts cast to float32,
+    each component of other planes). Its source is written for the layout (one named argument
+    and one term per input), as a hand-written kernel for those buffers would be: a loop over
+    a tuple of arrays indexed at run time compiled to about half the speed (measured on 1280x720
+    inputs, one thread). Rows are split between the threads by ``prange``; every input value is
+    read once and every output value written once. Compiled once per layout and process.
     """
-    h, w = out.shape[0], out.shape[1]
-    bands = min(h, BANDS)
-    for b in prange(bands):
-        rgb = np.empty((w, 3), np.float32)
-        extra = np.empty(w, np.float32)
-        for i in range(b * h // bands, (b + 1) * h // bands):
-            rgb[:] = 0.0
-            extra[:] = 0.0
-            for k in range(n_planes):
-                a = planes[k]
-                comps = a.shape[2]
-                if comps == 3:
-                    for j in range(w):
-                        rgb[j, 0] += a[i, j, 0]
-                        rgb[j, 1] += a[i, j, 1]
-                        rgb[j, 2] += a[i, j, 2]
-                else:
-                    for j in range(w):
-                        for c in range(comps):
-                            extra[j] += a[i, j, c]
-            for k in range(n_maps):
-                m = maps[k]
-                for j in range(w):
-                    extra[j] += m[i, j]
-            for k in range(n_counts):
-                n = counts[k]
-                for j in range(w):
-                    extra[j] += np.float32(n[i, j])
-            for j in range(w):
-                e = extra[j]
-                out[i, j, 0] = rgb[j, 0] + e
-                out[i, j, 1] = rgb[j, 1] + e
-                out[i, j, 2] = rgb[j, 2] + e
-
-
-def _read_only(array: np.ndarray) -> np.ndarray:
-    view = np.ascontiguousarray(array).view()
-    view.flags.writeable = False
-    return view
-
-
-_EMPTY3 = _read_only(np.zeros((1, 1, 3), np.float32))
-_EMPTY2 = _read_only(np.zeros((1, 1), np.float32))
-_EMPTY_INT = _read_only(np.zeros((1, 1), np.int32))
+    if layout in _KERNELS:
+        return _KERNELS[layout]
+    names = [f"a{k}" for k in range(len(layout))]
+    rgb, extra = [], []
+    for name, (ndim, comps, is_int) in zip(names, layout):
+        if ndim == 3 and comps == 3:
+            rgb.append(f"{name}[i, j, c]")
+        elif ndim == 3:
+            extra += [f"{name}[i, j, {c}]" for c in range(comps)]
+        else:
+            extra.append(f"float32({name}[i, j])" if is_int else f"{name}[i, j]")
+    source = "\n".join([
+        f"def kernel({', '.join([*names, 'out'])}):",
+        "    h, w = out.shape[0], out.shape[1]",
+        "    for i in prange(h):",
+        "        for j in range(w):",
+        f"            e = float32(0.0){''.join(' + ' + t for t in extra)}",
+        "            for c in range(3):",
+        f"                out[i, j, c] = e{''.join(' + ' + t for t in rgb)}",
+    ])
+    namespace = {"prange": prange, "float32": np.float32}
+    exec(compile(source, f"<floor kernel {layout}>", "exec"), namespace)
+    _KERNELS[layout] = njit(parallel=True)(namespace["kernel"])
+    return _KERNELS[layout]
 
 
 def floor_sum(arrays, out: np.ndarray) -> np.ndarray:
-    """Write into ``out`` (H, W, 3) float32 the per-pixel sum of ``arrays`` (see the kernel).
+    """Write into ``out`` (H, W, 3) float32 the per-pixel sum of ``arrays`` (see :func:`floor_kernel`).
 
     Parameters
     ----------
-    arrays : iterable of ndarray
+    arrays : sequence of ndarray
         (H, W, C) float32, (H, W) float32 or (H, W) int32 arrays of ``out``'s height and width.
     out : ndarray
-        (H, W, 3) float32, C-contiguous.
+        (H, W, 3) float32.
 
     Returns
     -------
     ndarray
         ``out``.
     """
-    planes, maps, counts = [], [], []
+    layout = []
     for a in arrays:
-        if a.ndim == 3 and a.dtype == np.float32:
-            planes.append(_read_only(a))
-        elif a.ndim == 2 and a.dtype == np.float32:
-            maps.append(_read_only(a))
-        elif a.ndim == 2 and a.dtype == np.int32:
-            counts.append(_read_only(a))
-        else:
+        if not (a.dtype == np.float32 and a.ndim in (2, 3) or a.dtype == np.int32 and a.ndim == 2):
             raise ValueError(f"the floor reads (H, W[, C]) float32 or (H, W) int32 arrays, got {a.dtype} {a.shape}")
-    _floor_kernel(tuple(planes or [_EMPTY3]), len(planes), tuple(maps or [_EMPTY2]), len(maps),
-                  tuple(counts or [_EMPTY_INT]), len(counts), out)
+        if a.shape[:2] != out.shape[:2]:
+            raise ValueError(f"the floor's inputs must be {out.shape[:2]} pixels, got {a.shape}")
+        layout.append((a.ndim, a.shape[2] if a.ndim == 3 else 1, a.dtype == np.int32))
+    floor_kernel(tuple(layout))(*arrays, out)
     return out
 
 
