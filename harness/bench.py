@@ -1,18 +1,19 @@
 """``denoise-bench bench``: per-frame filter time against peers and floors, threads, memory.
 
 Each resolution gets one rendered frame (two for temporal filters: the second is timed, with
-history) from the render store; every filter, the peers included, runs the job runner's timing
-protocol on that same frame, in the same worker (``local`` executor) or in this process
-(``inline``), at each requested thread count (:mod:`harness.threads`: Numba's, OpenCV's and
-PyTorch's pools, and what plugins read from :func:`harness.compute_threads`). In the same
-task, at the same thread count and with the same protocol, the filter's floor
-(:mod:`harness.floor`: a kernel that only reads every input the filter declares and writes one
-frame) is timed, and the filter's peak memory over one fresh run of the frames is measured
-(:mod:`harness.memory`).
+history) from the render store; every filter, the peers included, runs the timing protocol
+(:func:`harness.timer.time_frame`, as in a job) on that same frame, in the same worker
+(``local`` executor) or in this process (``inline``), at each requested thread count
+(:mod:`harness.threads`: Numba's, OpenCV's and PyTorch's pools, and what plugins read from
+:func:`harness.compute_threads`). In the same task, at the same thread count and with the
+same protocol, the filter's floor (:mod:`harness.floor`: a kernel that only reads every input
+the filter declares and writes one frame) is timed, and the filter's peak memory over one
+fresh run of the frames is measured (:mod:`harness.memory`).
 
 The table (:data:`COLUMNS`, one row per filter, resolution and thread count) shows
-median/min/max milliseconds, the compile/warm-up call, the floor and ``x_of_floor`` (filter ms
-/ floor ms), peak memory in MB and in float32 RGB frames, RMSE against the reference, each
+median/min/max milliseconds, the median process CPU time per call (``cpu_ms``, all threads),
+the compile/warm-up call, the floor and ``x_of_floor`` (filter ms / floor ms; ``_cpu``: in CPU
+time), peak memory in MB and in float32 RGB frames, RMSE against the reference, each
 filter's time relative to every peer at the same resolution and threads (``x_vs_PEER`` = peer
 ms / filter ms: above 1 means faster than the peer), to itself at the first resolution
 (``x_of_WxH`` = ms / ms at that resolution) and to itself at the first thread count
@@ -32,14 +33,13 @@ from dataclasses import dataclass, field
 import pandas as pd
 
 from harness.cache import array_hash, make_key
-from harness.errors import short_error
+from harness.errors import filter_error, short_error
 from harness.executors.base import Executor, Shared, Task, WorkerContext
 from harness.floor import floor_of
-from harness.jobs import GroupInputs
+from harness.jobs import GroupInputs, emitter_mask
 from harness.memory import peak_memory
-from harness.plan import Job, MetricPlan, choose_renderer, filter_params
+from harness.plan import Job, choose_renderer, filter_params
 from harness.renders import RenderStore
-from harness.tasks import JobTask
 from harness.threads import using_threads
 from harness.timer import time_frame
 
@@ -48,7 +48,8 @@ DEFAULT_PEERS = ("opencv_jbf", "oidn")
 #: the table's fixed columns and their dtypes (``rmse`` where scored; ratio columns follow)
 COLUMNS = {
     "filter": "str", "resolution": "str", "threads": "int64", "ms_median": "float64", "ms_min": "float64",
-    "ms_max": "float64", "compile_ms": "float64", "floor_ms": "float64", "x_of_floor": "float64",
+    "ms_max": "float64", "cpu_ms": "float64", "compile_ms": "float64", "floor_ms": "float64",
+    "floor_cpu_ms": "float64", "x_of_floor": "float64", "x_of_floor_cpu": "float64",
     "peak_mb": "float64", "peak_frames": "float64", "traced_mb": "float64", "rss_mb": "float64",
     "rmse": "float64", "status": "str", "notes": "str",
 }
@@ -76,32 +77,59 @@ class BenchResult:
 
 @dataclass
 class BenchMeasure:
-    """What a :class:`BenchTask` sends back: the job's rows, the floor's timing, the memory peak."""
+    """What a :class:`BenchTask` sends back.
 
-    rows: list
+    Attributes
+    ----------
+    threads : int
+        ``numba.get_num_threads()`` in the task, where it ran.
+    status : str
+        ``ok`` or ``error: ...``.
+    timing : dict
+        The timing protocol's result on the last frame, with ``compile_ms`` of the first.
+    rmse : float
+        Against the reference (NaN when not scored).
+    floor : dict
+        The timing protocol's result for the floor.
+    memory : tuple or None
+        (traced bytes, RSS bytes) of :func:`filter_memory`.
+    notes : list of str
+    """
+
+    threads: int
+    status: str = "ok"
+    timing: dict = field(default_factory=dict)
+    rmse: float = math.nan
     floor: dict = field(default_factory=dict)
-    memory: tuple | None = None  # (traced bytes, rss bytes)
+    memory: tuple | None = None
     notes: list = field(default_factory=list)
 
 
 @dataclass
 class BenchTask(Task):
-    """One filter at one resolution and thread count: its job, its floor, its peak memory.
+    """One filter at one resolution and thread count: its time, its floor's, its peak memory.
+
+    The filter runs the timing protocol (:func:`harness.timer.time_frame`) on each frame of the
+    shared inputs, as a job does (:func:`harness.jobs.run_job`), showing it only its declared
+    channels; its last output is scored with ``rmse`` where asked (emitter pixels left out, as in
+    a job).
 
     Attributes
     ----------
     job : Job
-    metrics : MetricPlan
+        The filter, its parameters, backend, resolution and repeats.
     shared : Shared
         The resolution's :class:`harness.jobs.GroupInputs`.
     threads : int or None
         Threads for every pool while the task runs (None: as the worker is).
+    score : bool
+        Score ``rmse`` against the last frame's reference.
     """
 
     job: Job
-    metrics: MetricPlan
     shared: Shared
     threads: int | None = None
+    score: bool = False
     timed = True
 
     @property
@@ -111,26 +139,51 @@ class BenchTask(Task):
         return f"{j.filter}/{j.backend} at {j.width}x{j.height}{threads}"
 
     def run(self, context: WorkerContext, shared: GroupInputs) -> BenchMeasure:
-        with using_threads(self.threads):
-            result = JobTask(self.job, self.metrics, self.shared).run(context, shared)
-            measure = BenchMeasure(result.rows)
-            if not result.rows or result.rows[-1].status != "ok":
-                return measure
-            spec = context.registry.get("filter", self.job.filter)
+        if shared is None:
+            raise RuntimeError("the worker does not hold this bench's frames")
+        job = self.job
+        with using_threads(self.threads) as count:
+            measure = BenchMeasure(threads=count)
+            spec = context.registry.get("filter", job.filter)
             frames = [f.subset((spec.requires | spec.optional) & f.channels) for f in shared.frames]
-            if self.job.backend == "cpu":
+            try:
+                filt = spec.factory(backend=job.backend, **job.param_dict)
+                filt.reset()
+                for t, frame in enumerate(frames):
+                    filt, out, timing, _ = time_frame(filt, spec, job.backend, frame, t == 0, job.repeats,
+                                                      check=f"filter {job.filter!r}")
+                    measure.timing.setdefault("compile_ms", timing.get("compile_ms", math.nan))
+                    context.progress(1)
+            except (Exception, SystemExit) as exc:
+                measure.status = f"error: {filter_error(exc)}"
+                return measure
+            measure.timing.update({k: v for k, v in timing.items() if k != "compile_ms"})
+            if self.score:
+                measure.rmse = _rmse(context.registry, out, shared, job)
+            if job.backend == "cpu":
                 try:
-                    measure.floor = time_floor(spec, frames, self.job.repeats)
+                    measure.floor = time_floor(spec, frames, job.repeats)
                 except Exception as exc:
                     measure.notes.append(f"floor failed: {short_error(exc, 120)}")
             else:
                 measure.notes.append("no floor: it is a CPU kernel")
             try:
-                peak = filter_memory(spec, self.job, frames)
+                peak = filter_memory(spec, job, frames)
                 measure.memory = (peak.traced, peak.rss)
             except (Exception, SystemExit) as exc:
                 measure.notes.append(f"memory not measured: {short_error(exc, 120)}")
         return measure
+
+
+def _rmse(registry, out, inputs: GroupInputs, job: Job) -> float:
+    """``rmse`` of ``out`` against the last frame's reference, emitters left out as in a job."""
+    mspec = registry.get("metric", "rmse")
+    extra = {}
+    if "mask" in mspec.accepts:
+        extra["mask"] = emitter_mask(inputs.frames[-1]) if job.emitters == "exclude" else None
+    if "reference_variance" in mspec.accepts:
+        extra["reference_variance"] = None
+    return float(mspec.factory()(out, inputs.references[-1], **extra))
 
 
 def time_floor(spec, frames: Sequence, repeats: int) -> dict:
@@ -275,7 +328,7 @@ def bench_filters(
                 fparams, preset = configured[spec.name]
                 job = Job(task, scene, rname, spec.name, backend, json.dumps(fparams, sort_keys=True, default=str),
                           preset, 1, 0, width=width, height=height, frames=frames, repeats=repeats)
-                tasks.append(BenchTask(job, MetricPlan(frame=[metric] if metric else []), shared, count))
+                tasks.append(BenchTask(job, shared, count, score=metric is not None))
         for index, outcome in executor.run(tasks):
             bench_task = tasks[index]
             row, stage = _table_row(bench_task, outcome, width * height, metric)
@@ -296,31 +349,31 @@ def _table_row(bench_task: BenchTask, outcome, pixels: int, metric: str | None) 
     job = bench_task.job
     res = f"{job.width}x{job.height}"
     measure = outcome.value if outcome.ok else None
-    rows = measure.rows if measure is not None else []
-    last = rows[-1] if rows else None
-    threads = last.threads if last is not None else (bench_task.threads or -1)
+    threads = measure.threads if measure is not None else (bench_task.threads or -1)
     base = {"filter": job.filter, "resolution": res, "threads": threads}
-    if last is None or last.status != "ok":
-        message = outcome.error if last is None else last.message
-        return {**base, "status": f"error: {message}"}, None
-    first = rows[0]
-    floor_ms = measure.floor.get("ms_median", math.nan)
+    if measure is None or measure.status != "ok":
+        return {**base, "status": outcome.error if measure is None else measure.status}, None
+    timing, floor = measure.timing, measure.floor
+    floor_ms, floor_cpu = floor.get("ms_median", math.nan), floor.get("cpu_ms_median", math.nan)
     frame_bytes = pixels * 3 * 4
     traced, rss = measure.memory if measure.memory is not None else (math.nan, math.nan)
     peak = max(traced, rss) if not math.isnan(rss) else traced
     row = {
-        **base, "ms_median": last.ms_median, "ms_min": last.ms_min, "ms_max": last.ms_max,
-        "compile_ms": first.compile_ms, "floor_ms": floor_ms,
-        "x_of_floor": last.ms_median / floor_ms if floor_ms > 0 else math.nan,
+        **base, "ms_median": timing["ms_median"], "ms_min": timing["ms_min"], "ms_max": timing["ms_max"],
+        "cpu_ms": timing["cpu_ms_median"], "compile_ms": timing["compile_ms"], "floor_ms": floor_ms,
+        "floor_cpu_ms": floor_cpu, "x_of_floor": _ratio(timing["ms_median"], floor_ms),
+        "x_of_floor_cpu": _ratio(timing["cpu_ms_median"], floor_cpu),
         "peak_mb": peak / MB, "peak_frames": peak / frame_bytes, "traced_mb": traced / MB, "rss_mb": rss / MB,
         "status": "ok", "notes": "; ".join(measure.notes),
     }
     if metric:
-        row["rmse"] = last.metrics.get(metric, math.nan)
-    stage = None
-    if last.stage_ms:
-        stage = {**base, **json.loads(last.stage_ms)}
+        row["rmse"] = measure.rmse
+    stage = {**base, **json.loads(timing["stage_ms"])} if timing.get("stage_ms") else None
     return row, stage
+
+
+def _ratio(a: float, b: float) -> float:
+    return a / b if b > 0 else math.nan
 
 
 def _typed(table: pd.DataFrame, with_rmse: bool) -> pd.DataFrame:
@@ -348,10 +401,7 @@ def _add_ratios(table: pd.DataFrame, peers, resolutions, threads) -> None:
 
     keys = list(zip(table["filter"], table["resolution"], table["threads"]))
     own = table["ms_median"].to_numpy()
-
-    def ratio(a: float, b: float) -> float:
-        return a / b if b > 0 else math.nan
-
+    ratio = _ratio
     for peer in peers:
         table[f"x_vs_{peer}"] = [ratio(lookup((peer, r, n)), m) for (_, r, n), m in zip(keys, own)]
     if len(resolutions) > 1:

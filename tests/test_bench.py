@@ -158,8 +158,8 @@ def test_table_columns_are_present_and_typed(local_table):
             assert str(table[name].dtype) == dtype or (dtype == "str" and table[name].map(type).eq(str).all()), name
     assert (table["status"] == "ok").all(), table[["filter", "status"]]
     assert len(table) == 3 * 2 * len(threads)
-    for column in ("ms_median", "floor_ms", "x_of_floor", "peak_mb", "peak_frames", "x_vs_passthrough",
-                   "x_of_256x192"):
+    for column in ("ms_median", "cpu_ms", "floor_ms", "floor_cpu_ms", "x_of_floor", "peak_mb", "peak_frames",
+                   "x_vs_passthrough", "x_of_256x192"):
         assert table[column].dtype == np.float64 and (table[column] > 0).all(), column
     base = table[table["resolution"] == "256x192"]
     assert (base["x_of_256x192"] == 1).all()
@@ -167,7 +167,7 @@ def test_table_columns_are_present_and_typed(local_table):
         assert f"speedup_vs_{threads[0]}t" in table
     markdown = bench_markdown(result, "denoise-bench bench alloc_frames")
     assert "Command: `denoise-bench bench alloc_frames`" in markdown and "Machine: " in markdown
-    assert "| x_of_floor | peak_mb |" in markdown
+    assert "| x_of_floor | x_of_floor_cpu | peak_mb |" in markdown
 
 
 def test_threads_reach_the_worker(local_table):

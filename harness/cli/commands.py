@@ -439,7 +439,8 @@ def cmd_bench(registry, args) -> int:
             progress=say,
         )
     print(f"scene {args.scene}, backend {args.backend}, {args.executor} executor, {args.repeats} timed calls per "
-          "frame; x_vs_PEER = peer ms / filter ms, x_of_floor = ms / floor ms, x_of_WxH = ms / ms at WxH, "
+          "frame; cpu_ms = process CPU time per call (all threads), x_vs_PEER = peer ms / filter ms, "
+          "x_of_floor = ms / floor ms, x_of_WxH = ms / ms at WxH, "
           "speedup_vs_Nt = ms at N threads / ms, peak_frames = peak / one float32 RGB frame")
     print(environment_line(result.environment))
     print(format_table(result.table))
