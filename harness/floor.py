@@ -7,8 +7,9 @@ temporal filter must also read its history: its floor keeps its own previous out
 it as one more RGB frame (the least history any temporal filter keeps; a filter that keeps more,
 e.g. moments or previous guides, has a floor set a little low). Every output value is the sum
 of the pixel's input values (all channels, all components), so the compiler cannot drop a read:
-a NaN in any input shows in the output. The output buffer (and the history) is allocated on the
-first call of a shape and kept, as a filter that streams would.
+a NaN in any input shows in the output. The output buffer (two, used in turn, for a temporal
+floor: one holds the history) is allocated on the first call of a shape or sequence and kept, as
+a filter that streams would, so a timed call that continues a sequence allocates nothing.
 
 Timed with the timing protocol (:func:`harness.timer.time_frame`) on the same frames, in the
 same process and at the same thread count as the filter, its time is the machine's streaming
@@ -120,6 +121,8 @@ class Floor:
             inputs.append(self.history)
         out = floor_sum(inputs, self.out)
         if self.temporal:  # the output becomes the history; the next call writes the other buffer
+            if self.history is None or self.history.shape != shape:
+                self.history = np.empty(shape, np.float32)  # first call of a sequence: the second buffer
             self.out, self.history = self.history, out
         return out
 

@@ -78,7 +78,10 @@ def test_temporal_floor_also_reads_its_history():
     floor, fspec = floor_of(spec)
     assert fspec.temporal and floor.channels == ("color", "normal")
     first = floor(Frame(arrays)).copy()
+    kept = (floor.out, floor.history)  # both buffers exist after a sequence's first call
+    assert kept[0] is not None and kept[1] is not None and kept[0] is not kept[1]
     second = floor(Frame(arrays))
+    assert second is kept[0] and floor.history is kept[0] and floor.out is kept[1]  # used in turn
     np.testing.assert_allclose(second, first * 2, rtol=1e-6)  # inputs + the previous output
     floor.reset()
     np.testing.assert_allclose(floor(Frame(arrays)), first, rtol=1e-6)
