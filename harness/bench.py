@@ -368,7 +368,10 @@ def _table_row(bench_task: BenchTask, outcome, pixels: int, metric: str | None) 
     }
     if metric:
         row["rmse"] = measure.rmse
-    stage = {**base, **json.loads(timing["stage_ms"])} if timing.get("stage_ms") else None
+    stage = None
+    if timing.get("stage_ms"):  # a stage named like a key column (sbf's "filter") gets " (stage)"
+        stages = json.loads(timing["stage_ms"])
+        stage = {**base, **{(f"{k} (stage)" if k in base else k): v for k, v in stages.items()}}
     return row, stage
 
 

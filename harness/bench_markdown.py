@@ -33,6 +33,20 @@ def scaling_table(table: pd.DataFrame) -> pd.DataFrame:
     return pivot.reindex(index=order, columns=columns).reset_index()
 
 
+def stage_lines(stages: pd.DataFrame) -> pd.DataFrame:
+    """One row per filter, resolution and thread count: its stages as ``name ms`` in order."""
+    keys = ["filter", "resolution", "threads"]
+    rows = []
+    for record in stages.to_dict("records"):
+        named = [f"{k} {_number(v)}" for k, v in record.items() if k not in keys and v == v]
+        rows.append({**{k: record[k] for k in keys}, "stages (ms, last timed call)": ", ".join(named)})
+    return pd.DataFrame(rows)
+
+
+def _number(value) -> str:
+    return f"{value:.4g}" if isinstance(value, float) else str(value)
+
+
 def bench_markdown(result, command: str) -> str:
     """The tables of a :class:`harness.bench.BenchResult` as markdown.
 
@@ -50,8 +64,8 @@ def bench_markdown(result, command: str) -> str:
     if not scaling.empty and len(scaling.columns) > 2:
         parts += ["#### Median milliseconds by resolution and threads", "", to_markdown(scaling)]
     if not result.stages.empty:
-        parts += ["#### Per-stage milliseconds (last timed call)", "", to_markdown(result.stages)]
+        parts += ["#### Per-stage milliseconds", "", to_markdown(stage_lines(result.stages))]
     return "\n".join(parts)
 
 
-__all__ = ["bench_markdown", "environment_line", "scaling_table"]
+__all__ = ["bench_markdown", "environment_line", "scaling_table", "stage_lines"]

@@ -2,7 +2,8 @@
 
 ``alloc_frames`` allocates (and writes) ten full float32 RGB frames in every call, then returns
 a copy of the colour: its peak memory per call is eleven frames. ``threads_probe`` returns the
-colour and fails when :func:`harness.compute_threads` disagrees with Numba's thread count.
+colour and fails when :func:`harness.compute_threads` disagrees with Numba's thread count; it
+reports two stages, one named ``filter`` like the table's key column (as ``sbf`` does).
 """
 
 import numba
@@ -32,10 +33,12 @@ class ThreadsProbe(AllocFrames):
     def __call__(self, frame, sampler=None):
         if compute_threads() != numba.get_num_threads():
             raise RuntimeError("compute_threads() disagrees with numba.get_num_threads()")
+        self.stage_ms = {"filter": 1.5, "copy": 0.5}
         return np.array(frame["color"], np.float32)
 
 
 @hookimpl
 def register_filters():
     return [FilterSpec(name="alloc_frames", version="0", factory=AllocFrames, requires={"color", "normal"}),
-            FilterSpec(name="threads_probe", version="0", factory=ThreadsProbe)]
+            FilterSpec(name="threads_probe", version="0", factory=ThreadsProbe,
+                       stage_timing=True)]

@@ -173,6 +173,12 @@ def test_table_columns_are_present_and_typed(local_table):
     assert "| x_of_floor | x_of_floor_cpu | peak_mb |" in markdown
 
 
+def test_a_stage_named_like_a_key_column_keeps_the_key(local_table):
+    stages = local_table[0].stages
+    assert set(stages["filter"]) == {"threads_probe"}
+    assert (stages["filter (stage)"] == 1.5).all() and (stages["copy"] == 0.5).all()
+
+
 def test_threads_reach_the_worker(local_table):
     """The ``threads`` column is ``numba.get_num_threads()`` read in the worker during the job."""
     result, threads = local_table
