@@ -40,6 +40,7 @@ from harness.scene import (
     srgb_to_linear,
 )
 from harness.specs import TASKS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
+from harness.threads import compute_threads
 
 __version__ = "0.1.0"
 
@@ -78,6 +79,7 @@ __all__ = [
     "TriangleSoup",
     "__version__",
     "available_backends",
+    "compute_threads",
     "cuda_available",
     "cuda_simulated",
     "display_variance",

@@ -421,25 +421,60 @@ def _render_on_cluster(registry, args, store, work, target: float) -> int:
 
 
 def cmd_bench(registry, args) -> int:
-    """Time filters per frame at each resolution, with peers on the same frame."""
-    import numba
+    """Time filters per frame at each resolution and thread count, with peers and floors on the same frame."""
+    from harness.bench_markdown import bench_markdown, environment_line
 
     peers = args.peers if args.peers is not None else [p for p in DEFAULT_PEERS if p in registry.filters]
     store = RenderStore(registry, Cache(args.cache_dir))
+
+    def say(line: str) -> None:
+        if not args.quiet:
+            print(f"bench: {line}", file=sys.stderr, flush=True)
+
     with _executor(registry, args) as executor:
         result = bench_filters(
             registry, store, executor, args.filters, peers=peers, scene=args.scene, renderer=args.renderer,
-            task=args.task, resolutions=args.resolution, backend=args.backend, repeats=args.repeats,
-            params=_grouped(args.param), presets=dict(args.preset), error=args.error,
+            task=args.task, resolutions=args.resolution, threads=args.threads or [None], backend=args.backend,
+            repeats=args.repeats, params=_grouped(args.param), presets=dict(args.preset), error=args.error,
+            progress=say,
         )
-    print(f"scene {args.scene}, backend {args.backend}, {numba.get_num_threads()} threads, {args.executor} "
-          f"executor, {args.repeats} timed calls per frame (x_vs_PEER = peer ms / filter ms)")
+    print(f"scene {args.scene}, backend {args.backend}, {args.executor} executor, {args.repeats} timed calls per "
+          "frame; cpu_ms = process CPU time per call (all threads), x_vs_PEER = peer ms / filter ms, "
+          "x_of_floor = ms / floor ms, x_of_WxH = ms / ms at WxH, "
+          "speedup_vs_Nt = ms at N threads / ms, peak_frames = peak / one float32 RGB frame")
+    print(environment_line(result.environment))
     print(format_table(result.table))
     if not result.stages.empty:
         print("\nPer-stage milliseconds (last timed call):")
         print(format_table(result.stages))
+    if args.markdown is not None:
+        args.markdown.write_text(bench_markdown(result, bench_command(args, peers)))
+        print(f"markdown written to {args.markdown}")
     table = result.table
     return 0 if not table.empty and table["status"].eq("ok").any() else 1
+
+
+def bench_command(args, peers) -> str:
+    """The ``denoise-bench bench`` command line that repeats this bench (every setting spelled out)."""
+    import shlex
+
+    parts = ["denoise-bench", "bench", ",".join(args.filters), "--peers", ",".join(peers) or "''",
+             "--scene", args.scene, "--task", args.task,
+             "--resolution", ",".join(f"{w}x{h}" for w, h in args.resolution)]
+    if args.renderer:
+        parts += ["--renderer", args.renderer]
+    if args.threads:
+        parts += ["--threads", ",".join(map(str, args.threads))]
+    parts += ["--backend", args.backend, "--repeats", str(args.repeats)]
+    if not args.error:
+        parts.append("--no-error")
+    for name, key, value in args.param:
+        parts += ["--param", shlex.quote(f"{name}.{key}={json.dumps(value)}")]
+    for name, chosen in args.preset:
+        parts += ["--preset", f"{name}={chosen}"]
+    if args.executor != "local":
+        parts += ["--executor", args.executor]
+    return " ".join(parts)
 
 
 def cmd_train(registry, args) -> int:

@@ -65,6 +65,28 @@ def integer(low: int):
     return parse
 
 
+def thread_counts(value: str) -> list[int]:
+    """``N,M,...`` or ``all``: thread counts, each in [1, Numba's limit], in order, duplicates dropped."""
+    from harness.threads import max_threads
+
+    limit = max_threads()
+    counts = []
+    for item in (v.strip() for v in value.split(",")):
+        if item.lower() == "all":
+            counts.append(limit)
+            continue
+        try:
+            counts.append(int(item))
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"must be thread counts (integers >= 1) or 'all', separated by commas, got {value!r}") from None
+    bad = [n for n in counts if not 1 <= n <= limit]
+    if bad:
+        raise argparse.ArgumentTypeError(f"must be in [1, {limit}] (Numba's limit here: NUMBA_NUM_THREADS or the "
+                                         f"core count), got {value!r}")
+    return list(dict.fromkeys(counts))
+
+
 def positive_seconds(value: str) -> float:
     try:
         number = float(value)
@@ -374,6 +396,9 @@ def build_parser() -> Parser:
     bench.add_argument("--renderer", default=None)
     bench.add_argument("--task", choices=list(TASKS), default="denoise")
     bench.add_argument("--resolution", type=resolutions, default=[(1280, 720), (1920, 1080)], metavar="WxH,...")
+    bench.add_argument("--threads", type=thread_counts, default=None, metavar="N,...|all",
+                       help="time every filter and its floor at each of these thread counts (Numba, OpenCV, "
+                            "PyTorch, OIDN), e.g. 1,2,all (default: the worker's own, all cores)")
     bench.add_argument("--backend", choices=["cpu", "cuda"], default="cpu")
     bench.add_argument("--repeats", type=integer(1), default=10)
     bench.add_argument("--no-error", dest="error", action="store_false",
@@ -382,6 +407,9 @@ def build_parser() -> Parser:
     bench.add_argument("--param", type=param, action="append", default=[], metavar="FILTER.NAME=VALUE")
     bench.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET")
     bench.add_argument("--cache-dir", type=Path, default=None)
+    bench.add_argument("--markdown", type=Path, default=None, metavar="FILE",
+                       help="also write the command, the machine and the tables as markdown to FILE")
+    bench.add_argument("--quiet", action="store_true", help="no progress lines on standard error")
     _add_executor(bench)
     _add_common(bench)
 

@@ -22,13 +22,16 @@ this one's single-thread CPU time per round at 1280x720, with identical output o
 EPYC VM, load average 16-19). A new OIDN filter object per call costs nothing measurable: its
 ``commit`` took 0.2-0.4 ms of CPU against 1250-1300 ms for ``execute`` at 1280x720 on one
 thread, the same as re-executing a kept filter, so the peer is timed as a user would run it.
+
+Threads: the device runs on :func:`harness.compute_threads` threads (all cores unless
+``denoise-bench bench --threads`` asks for fewer).
 """
 
 import importlib.util
 
 import numpy as np
 
-from harness import FilterSpec, Param, hookimpl
+from harness import FilterSpec, Param, compute_threads, hookimpl
 
 # pyoidn imports torch (seconds): look it up now, so a missing install marks this plugin broken,
 # and import it when a filter is built.
@@ -85,6 +88,7 @@ class OIDN:
         self._oidn = pyoidn
         self.quality = quality
         self._device = pyoidn.Device()
+        self._device.set_int("numThreads", compute_threads())  # what `denoise-bench bench --threads` asks
         self._device.commit()
         self.repaired = 0
 
