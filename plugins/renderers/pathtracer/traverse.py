@@ -12,6 +12,13 @@ triangles that share it (no cracks between triangles).
 Geometry arrays: ``tri_v`` (T, 9) float32 rows ``v0 v1 v2``; ``nodes_f`` and ``nodes_i``, the two
 views of :func:`.bvh.pack_wide`. ``stack_n`` (int32) and ``stack_t`` (float32) are scratch arrays
 of at least :func:`stack_size` entries, allocated by the caller (once per thread).
+
+No reference counting: Numba increments and decrements the reference count of an array (an
+atomic instruction on a counter that both threads share) where it is passed to an inlined helper
+inside these loops, and its pruning pass cannot remove the pairs there. The prefetches of pushed
+children are therefore written out in place, not in a helper taking the arrays;
+``tests/test_pathtracer_geometry.py::test_traversal_has_no_reference_counting`` checks the
+machine code.
 """
 
 from __future__ import annotations
@@ -137,15 +144,6 @@ def _shear(dx, dy, dz):
     return kx, ky, kz, sx, sy, sz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _prefetch_child(nodes_f, tri_v, code):
-    """Ask for the node row, or the leaf's first triangle rows, of child ``code``."""
-    if code >= 0:
-        prefetch(nodes_f, code, 4)
-    else:
-        prefetch(tri_v, (-1 - code) >> LEAF_BITS, 2)
-
-
 @njit(cache=True, error_model="numpy")
 def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_n, stack_t):
     """Nearest intersection along a ray.
@@ -186,7 +184,10 @@ def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, sta
                     continue
                 # push the children hit (distances compacted down from box8's scratch), nearest on top
                 ck = nodes_i[node, CHILD_COL + k]
-                _prefetch_child(nodes_f, tri_v, ck)
+                if ck >= 0:  # ask for the child's node row, or its leaf's first triangles
+                    prefetch(nodes_f, ck, 4)
+                else:
+                    prefetch(tri_v, (-1 - ck) >> LEAF_BITS, 2)
                 stack_n[sp] = ck
                 stack_t[sp] = stack_t[sp + k]
                 top = sp + 1
@@ -195,7 +196,10 @@ def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, sta
                     mask &= mask - 1
                     tk = stack_t[sp + k]
                     ck = nodes_i[node, CHILD_COL + k]
-                    _prefetch_child(nodes_f, tri_v, ck)
+                    if ck >= 0:  # ask for the child's node row, or its leaf's first triangles
+                        prefetch(nodes_f, ck, 4)
+                    else:
+                        prefetch(tri_v, (-1 - ck) >> LEAF_BITS, 2)
                     j = top
                     while j > sp and stack_t[j - 1] < tk:
                         stack_t[j] = stack_t[j - 1]
@@ -253,7 +257,10 @@ def occluded(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_
                     k = lowest_bit(mask)
                     mask &= mask - 1
                     ck = nodes_i[row, CHILD_COL + k]
-                    _prefetch_child(nodes_f, tri_v, ck)
+                    if ck >= 0:  # ask for the child's node row, or its leaf's first triangles
+                        prefetch(nodes_f, ck, 4)
+                    else:
+                        prefetch(tri_v, (-1 - ck) >> LEAF_BITS, 2)
                     stack_n[sp] = ck
                     sp += 1
                 continue
