@@ -281,3 +281,21 @@ def test_exr_environment_map_shows_in_the_background(tmp_path, renderer, rotatio
     # pixel (8, 8) looks just right of and below -z: u = 0.5+ + rotation / 360, v = 0.5+
     col = int((0.5 + rotation / 360.0) * 16) % 16
     np.testing.assert_allclose(frame["color"][8, 8], 2.0 * image[4, col], rtol=1e-6)
+
+
+def test_draws_from_several_threads_match_one_thread(registry, atrium):
+    """An OpenGL context belongs to one thread: renders requested from a pool's threads (a Dask
+    client drawing references) must give the images one thread gives, at changing sizes."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    shared = registry.get("renderer", "raster").factory()
+    sizes = [(W, H), (2 * W, 2 * H), (W + 8, H + 4)]
+    got = []
+    for size in sizes:  # each call on a new thread: the pool is made and dropped per call
+        with ThreadPoolExecutor(1) as pool:
+            got.append(pool.submit(shared.render, atrium, 0, channels={"object_id"}, resolution=size).result())
+    alone = registry.get("renderer", "raster").factory()
+    for size, frame in zip(sizes, got):
+        want = alone.render(atrium, 0, channels={"object_id"}, resolution=size)
+        np.testing.assert_array_equal(frame["object_id"], want["object_id"])
+        np.testing.assert_array_equal(frame["color"], want["color"])

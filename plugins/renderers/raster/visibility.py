@@ -12,6 +12,7 @@ other G-buffer value is then computed in float from the ray and the triangle (se
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -19,7 +20,13 @@ MAX_TRIANGLES = 1 << 24  # float32 holds every integer below this exactly
 
 
 class VisibilityRasterizer:
-    """A reusable off-screen VTK window that draws triangle indices.
+    """A reusable off-screen VTK window that draws triangle indices, from any thread.
+
+    An OpenGL context is current on one thread only: drawn from another thread, VTK's window
+    reads back buffers of the wrong size and logs shader errors (seen when a Dask client's pool
+    threads drew references one after the other). The window is therefore created and used on
+    one thread of its own; :meth:`triangle_ids` hands each draw to it and waits, so callers on
+    any thread, several at once included, are served one at a time.
 
     Notes
     -----
@@ -27,6 +34,32 @@ class VisibilityRasterizer:
     ``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow``, done here when unset), otherwise VTK's
     default off-screen window.
     """
+
+    def __init__(self):
+        self._thread = ThreadPoolExecutor(1, thread_name_prefix="vtk-visibility")
+        self._drawing = self._thread.submit(_VtkDrawing).result()
+
+    def triangle_ids(self, vertices: np.ndarray, view_proj: np.ndarray, width: int, height: int) -> np.ndarray:
+        """Index of the triangle seen at each pixel centre (drawn on the window's own thread).
+
+        Parameters
+        ----------
+        vertices : ndarray (T, 3, 3)
+            World-space triangle corners.
+        view_proj : ndarray (4, 4)
+            World-to-clip matrix (OpenGL convention) whose near and far planes enclose the scene.
+        width, height : int
+
+        Returns
+        -------
+        ndarray (height, width) int32
+            Triangle index, -1 where no triangle covers the pixel centre. Row 0 is the top row.
+        """
+        return self._thread.submit(self._drawing.triangle_ids, vertices, view_proj, width, height).result()
+
+
+class _VtkDrawing:
+    """The VTK objects of :class:`VisibilityRasterizer`; built and used on its one thread."""
 
     def __init__(self):
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -71,21 +104,7 @@ class VisibilityRasterizer:
         self._passes = (passes, sequence, camera_pass)  # Python wrappers live as long as the window
 
     def triangle_ids(self, vertices: np.ndarray, view_proj: np.ndarray, width: int, height: int) -> np.ndarray:
-        """Index of the triangle seen at each pixel centre.
-
-        Parameters
-        ----------
-        vertices : ndarray (T, 3, 3)
-            World-space triangle corners.
-        view_proj : ndarray (4, 4)
-            World-to-clip matrix (OpenGL convention) whose near and far planes enclose the scene.
-        width, height : int
-
-        Returns
-        -------
-        ndarray (height, width) int32
-            Triangle index, -1 where no triangle covers the pixel centre. Row 0 is the top row.
-        """
+        """See :meth:`VisibilityRasterizer.triangle_ids`."""
         from vtk.util.numpy_support import vtk_to_numpy
 
         vtk = self._vtk
