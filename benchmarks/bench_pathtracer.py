@@ -6,11 +6,16 @@ Usage::
                                           [--repeats 3] [--scenes atrium classroom] [--no-mitsuba]
                                           [--baseline FOLDER]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
+    python benchmarks/bench_pathtracer.py --threads 1 2 --no-mitsuba [--scenes classroom]
 
 ``--baseline FOLDER``: FOLDER is a copy of the project at an earlier commit (``git archive REV |
 tar -x -C FOLDER``); its path tracer renders the scene as its own Mitsuba loader loads it, and its
 frames are timed too, alternating with ours and Mitsuba's frame by frame in this one process, so
 all three see the same machine load.
+
+``--threads N [N ...]``: our path tracer's frames with each of these Numba thread counts
+(``numba.set_num_threads``), alternating frame by frame in this one process, labelled
+``pathtracer/Nt``; the machine must have at least the largest count of CPUs.
 
 ``--ratios``: instead of timing, converged images of the third-party scenes (``--scenes``,
 default classroom, living-room, sponza) by both renderers, and the ratio harness / Mitsuba 3 of
@@ -76,12 +81,15 @@ def harness_scene(registry, name: str):
     return None
 
 
-def frame_of(renderer_class, scene, args):
-    """A function rendering one complete frame (primary rays and first hits included)."""
+def frame_of(renderer_class, scene, args, threads=None):
+    """A function rendering one complete frame (primary rays and first hits included), with
+    ``threads`` Numba threads (None: as set)."""
     renderer = renderer_class(max_depth=args.max_depth, rr_depth=args.rr_depth)
     size = (args.width, args.height)
 
     def frame():
+        if threads is not None:
+            numba.set_num_threads(threads)
         renderer._setups.clear()
         renderer.render(scene, 0, spp=args.spp, seed=0, resolution=size)
 
@@ -216,8 +224,9 @@ def ratios(registry, args) -> None:
 
 def report(rows: list[dict], args) -> None:
     paths = args.width * args.height * args.spp
+    threads = args.threads or numba.get_num_threads()
     print(f"\n{args.width}x{args.height}, {args.spp} spp, max_depth {args.max_depth}, rr_depth {args.rr_depth}, "
-          f"{os.cpu_count()} CPUs, {numba.get_num_threads()} Numba threads; median [min-max] of {args.repeats}")
+          f"{os.cpu_count()} CPUs, {threads} Numba threads; median [min-max] of {args.repeats}")
     print(f"{'renderer':<12} {'scene':<11} {'ms/frame':>22} {'Mpaths/s':>9} {'CPU ms':>9} {'Mpaths/CPU-s':>13}")
     for r in rows:
         wall, cpu = statistics.median(r["wall"]), statistics.median(r["cpu"])
@@ -249,7 +258,11 @@ def main() -> None:
     parser.add_argument("--no-mitsuba", action="store_true")
     parser.add_argument("--baseline", type=Path, default=None, help="folder with a copy of an earlier pathtracer")
     parser.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
+    parser.add_argument("--threads", type=int, nargs="+", default=None,
+                        help="time our path tracer with each of these Numba thread counts")
     args = parser.parse_args()
+    if args.threads and not all(1 <= n <= numba.config.NUMBA_NUM_THREADS for n in args.threads):
+        parser.error(f"--threads must lie in 1..{numba.config.NUMBA_NUM_THREADS}")
     registry = load_plugins()
     if args.ratios:
         args.scenes = args.scenes or ["classroom", "living-room", "sponza"]
@@ -273,7 +286,11 @@ def main() -> None:
                     warnings.simplefilter("ignore")
                     old_scene = old[1](folder) if (folder / "scene.xml").is_file() else scene
                 fns["baseline"] = frame_of(old[0], old_scene, args)
-            fns["pathtracer"] = frame_of(PathTracer, scene, args)
+            if args.threads:
+                for n in args.threads:
+                    fns[f"pathtracer/{n}t"] = frame_of(PathTracer, scene, args, n)
+            else:
+                fns["pathtracer"] = frame_of(PathTracer, scene, args)
             if not args.no_mitsuba and (folder / "scene.xml").is_file():
                 fns["mitsuba3"] = mitsuba_frame(folder, scene, args, Path(tmp))
             for label, times in alternating(fns, args.repeats).items():

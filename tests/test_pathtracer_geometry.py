@@ -97,3 +97,30 @@ def test_watertight_closed_mesh_has_no_cracks():
         k, _, _, _ = closest_hit(*origin, *d, np.inf, -1, tri_v, nodes_f, nodes_i, sn, st)
         misses += k < 0
     assert misses == 0
+
+
+def _function_body(llvm_ir: str, name: str) -> str:
+    """The LLVM IR of the defined function whose symbol contains ``name``."""
+    start = next(i for i, line in enumerate(llvm_ir.splitlines())
+                 if line.startswith("define") and name in line and "cpython" not in line)
+    lines = llvm_ir.splitlines()[start:]
+    return "\n".join(lines[:lines.index("}") + 1])
+
+
+def test_traversal_has_no_reference_counting():
+    """No atomic reference-count updates per ray or per node (see the docstring of ``traverse``).
+
+    Mutation check: with the children's prefetches moved back into an inlined helper taking the
+    arrays, both functions call ``NRT_incref`` again."""
+    verts = np.zeros((1, 3, 3), np.float32)
+    verts[0] = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    ordered, nodes_f, nodes_i, count, order, depth = _prepare(verts)
+    tri_v = np.ascontiguousarray(ordered.reshape(-1, 9))
+    sn, st = _stacks(depth)
+    args = (0.2, 0.2, 1.0, 0.0, 0.0, -1.0, np.inf, -1, tri_v, nodes_f, nodes_i, sn, st)
+    closest_hit(*args)
+    occluded(*args)
+    for fn, name in ((closest_hit, "closest_hit"), (occluded, "occluded")):
+        for llvm_ir in fn.inspect_llvm().values():
+            body = _function_body(llvm_ir, name)
+            assert "NRT_incref" not in body and "NRT_decref" not in body, name

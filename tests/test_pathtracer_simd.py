@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from plugins.renderers.pathtracer.bvh import build_bvh, pack_wide
-from plugins.renderers.pathtracer.simd import box8, lowest_bit
+from plugins.renderers.pathtracer.bvh import ROOT, UNIT, build_bvh, pack_wide
+from plugins.renderers.pathtracer.simd import box4, box8, lowest_bit
 from plugins.renderers.pathtracer.traverse import _pick, _shear, _triangle, closest_hit, occluded, ray_setup, stack_size
 
 
@@ -15,6 +15,12 @@ from plugins.renderers.pathtracer.traverse import _pick, _shear, _triangle, clos
 def _box8(nodes_f, o, d, tmax, near):
     ray, cols = ray_setup(o[0], o[1], o[2], d[0], d[1], d[2], tmax)
     return box8(nodes_f, 0, ray, cols, near, 0)
+
+
+@njit(cache=True)
+def _box4(nodes_f, o, d, tmax, near):
+    ray, cols = ray_setup(o[0], o[1], o[2], d[0], d[1], d[2], tmax)
+    return box4(nodes_f, 0, ray, cols, near, 0)
 
 
 @njit(cache=True)
@@ -50,6 +56,31 @@ def _row(lo, hi):
     return row
 
 
+def _unit(lo, hi):
+    """One 4-wide node unit holding up to 4 boxes (float32); the other lanes empty."""
+    unit = np.zeros((1, UNIT), np.float32)
+    unit[0, :12] = np.inf
+    unit[0, 12:24] = -np.inf
+    for k in range(len(lo)):
+        for a in range(3):
+            unit[0, 4 * a + k] = lo[k][a]
+            unit[0, 12 + 4 * a + k] = hi[k][a]
+    return unit
+
+
+def _leaf_codes(nodes_i):
+    """Codes of the leaves reached from the root of :func:`pack_wide`'s nodes (8- and 4-wide)."""
+    flat = nodes_i.ravel()
+    todo, leaves = [ROOT], []
+    while todo:
+        code = todo.pop()
+        start = (code >> 1) * UNIT
+        codes = flat[start + 48:start + 56] if code & 1 else flat[start + 24:start + 28]
+        todo += [int(c) for c in codes if c >= 0]
+        leaves += [int(c) for c in codes if c < 0]
+    return np.array(leaves)
+
+
 def _oracle(lo, hi, o, d, tmax):
     """Closed-box slab test in float64: (hit, entry distance) per box; a zero direction component
     keeps the box iff the origin lies in the closed slab."""
@@ -71,7 +102,8 @@ def _oracle(lo, hi, o, d, tmax):
 
 def _check(lo, hi, o, d, tmax, loose=1e-5):
     """box8 reports every box the oracle hits, with an entry distance no later than the exact one,
-    and nothing the oracle misses on boxes enlarged by ``loose`` (relative to the scene size)."""
+    and nothing the oracle misses on boxes enlarged by ``loose`` (relative to the scene size);
+    box4 gives box8's answer on up to 4 boxes."""
     near = np.empty(8, np.float32)
     got = _bits(_box8(_row(lo, hi), np.asarray(o, np.float64), np.asarray(d, np.float64), tmax, near))
     want, t_exact = _oracle(lo, hi, o, d, tmax)
@@ -84,6 +116,12 @@ def _check(lo, hi, o, d, tmax, loose=1e-5):
     pad = loose * 10.0
     big, _ = _oracle([np.asarray(b) - pad for b in lo], [np.asarray(b) + pad for b in hi], o, d, tmax)
     assert not (got[:n] & ~big).any(), "box8 reported a box far from the ray"
+    if n <= 4:  # box4 on a 4-wide unit: the same lanes, bit for bit
+        near4 = np.empty(8, np.float32)
+        got4 = _bits(_box4(_unit(lo, hi), np.asarray(o, np.float64), np.asarray(d, np.float64), tmax, near4))
+        assert (got4 == np.concatenate([got[:4], np.zeros(4, np.bool_)])).all()
+        k = np.flatnonzero(got[:4])
+        assert (near4[k] == near[k]).all()
     return got[:n], want
 
 
@@ -177,9 +215,8 @@ def test_wide_bvh_matches_brute_force_on_axis_aligned_geometry():
     verts = _cube_grid(4)
     bounds, child, count, order, depth = build_bvh(verts)
     nodes_f, nodes_i = pack_wide(bounds, child, count)
-    assert nodes_f.shape[1] == 64 and nodes_f.ctypes.data % 64 == 0
-    codes = nodes_i[:, 48:56]
-    leaves = codes[codes < 0]
+    assert nodes_f.shape[1] == 32 and nodes_f.ctypes.data % 64 == 0
+    leaves = _leaf_codes(nodes_i)
     assert ((-1 - leaves) & 63).sum() == len(verts)  # every triangle in exactly one leaf
     tri_v = np.ascontiguousarray(verts[order].reshape(-1, 9))
     sn, st = np.empty(stack_size(depth), np.int32), np.empty(stack_size(depth), np.float32)

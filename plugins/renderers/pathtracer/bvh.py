@@ -6,7 +6,7 @@ the exact one; ``child`` (N,) int32 is the index of the left child of an interio
 child is ``child + 1``) or the first triangle of a leaf; ``count`` (N,) int32 is 0 for interior
 nodes and the number of triangles of a leaf. Triangles are renumbered so that each leaf covers a
 contiguous range; ``order`` maps new positions to the input triangle indices. Traversal uses the
-8-wide form of :func:`pack_wide`.
+wide form of :func:`pack_wide` (8- and 4-wide nodes).
 
 Reference: Wald, "On fast construction of SAH-based bounding volume hierarchies", RT 2007
 (binned SAH); costs: traversal step 1, triangle test 1.
@@ -196,7 +196,10 @@ def build_bvh(vertices, leaf_size=2):
 
 LEAF_BITS = 6  # a leaf code holds the triangle count in its low bits (count < 64)
 WIDTH = 8  # children per wide node (the lanes of :func:`.simd.box8`)
-ROW = 64  # float32 / int32 columns per wide node row: 6 planes x 8 lanes, 8 child codes, 8 unused
+NARROW = 4  # children per narrow node (the lanes of :func:`.simd.box4`)
+ROW = 64  # float32 / int32 columns of an 8-wide node: 6 planes x 8 lanes, 8 child codes, 8 unused
+UNIT = 32  # float32 / int32 columns per storage unit (128 bytes): a narrow node, or half a wide one
+ROOT = 1  # the code of the root: an 8-wide node at unit 0
 
 
 @njit(cache=True, error_model="numpy")
@@ -255,23 +258,60 @@ def _collapse(bounds, child, count, rows_f, rows_i):
     return n_rows
 
 
+@njit(cache=True, error_model="numpy")
+def _to_units(rows_f, rows_i, n_rows, units_i):
+    """Store the wide rows as 8-wide nodes (2 units) or, with at most 4 children, 4-wide nodes (1
+    unit); interior children's codes become ``unit << 1 | wide``. Returns the units used."""
+    first = np.empty(n_rows, np.int64)
+    wide = np.empty(n_rows, np.int64)
+    u = 0
+    for r in range(n_rows):
+        m = 0
+        for k in range(WIDTH):
+            if rows_i[r, 6 * WIDTH + k] != -1:
+                m += 1
+        wide[r] = 1 if (r == 0 or m > NARROW) else 0
+        first[r] = u
+        u += 2 if wide[r] else 1
+    units_f = units_i.view(np.float32)
+    for r in range(n_rows):
+        lanes = WIDTH if wide[r] else NARROW
+        flat = first[r] * UNIT
+        for p in range(6):
+            for k in range(lanes):
+                c = flat + lanes * p + k
+                units_f[c // UNIT, c % UNIT] = rows_f[r, WIDTH * p + k]
+        for k in range(lanes):
+            code = rows_i[r, 6 * WIDTH + k]
+            if code >= 0:
+                code = (first[code] << 1) | wide[code]
+            c = flat + 6 * lanes + k
+            units_i[c // UNIT, c % UNIT] = code
+    return u
+
+
 def pack_wide(bounds: np.ndarray, child: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The binary tree collapsed into an 8-wide one, one 256-byte row per node, cache-line aligned.
+    """The binary tree collapsed into a wide one of 8- and 4-wide nodes, cache-line aligned.
 
     Each wide node takes the children of a binary node and repeatedly replaces the interior one
     of largest surface area by its two children, until it has 8 children or only leaves (the
-    usual collapse of a binary SAH tree). Row ``r``: columns ``8 * p + k`` (float32) are plane
-    ``p`` (min x, min y, min z, max x, max y, max z) of child ``k``, so that each plane of all 8
-    children is one vector load (:func:`.simd.box8`). Columns 48-55 (int32 view) are the
-    children's codes: a row index for an interior child, or ``-1 - (first << LEAF_BITS | count)``
-    for a leaf of ``count`` triangles from ``first``. Unused lanes hold an empty box (min +inf,
-    max -inf, never entered) and the code of an empty leaf (-1). Row 0 is the root; a tree that
-    is a single leaf gets a root row with that leaf as its only child.
+    usual collapse of a binary SAH tree). A node with at most 4 children (about half of them on
+    the classroom, where nodes average 4.2 children) is stored 4 wide, in one 128-byte unit (two
+    cache lines); the others, and the root, 8 wide in two units (four lines), so that traversal
+    reads half the memory for a narrow node. An 8-wide node from column ``c = 32 * unit``: columns
+    ``c + 8 * p + k`` (float32) are plane ``p`` (min x, min y, min z, max x, max y, max z) of child
+    ``k``, so that each plane of all 8 children is one vector load (:func:`.simd.box8`), and
+    columns ``c + 48 + k`` (int32 view) are the children's codes. A 4-wide node: planes at ``c + 4 *
+    p + k`` (:func:`.simd.box4`), codes at ``c + 24 + k``. A code is ``unit << 1 | wide`` for an
+    interior child (``wide`` = 1 for an 8-wide node), or ``-1 - (first << LEAF_BITS | count)`` for
+    a leaf of ``count`` triangles from ``first``. Unused lanes hold an empty box (min +inf, max
+    -inf, never entered) and the code of an empty leaf (-1). The root is 8 wide at unit 0 (code
+    :data:`ROOT`); a tree that is a single leaf gets a root with that leaf as its only child.
 
     Returns
     -------
-    nodes_f : ndarray (R, 64) float32
-    nodes_i : ndarray (R, 64) int32
+    nodes_f : ndarray (U, 32) float32
+    nodes_i : ndarray (U, 32) int32
         Two views of the same 64-byte-aligned memory.
     """
     n = len(bounds)
@@ -283,8 +323,10 @@ def pack_wide(bounds: np.ndarray, child: np.ndarray, count: np.ndarray) -> tuple
     work_f[:, 3 * WIDTH:6 * WIDTH] = -np.inf
     work_i[:, 6 * WIDTH:7 * WIDTH] = -1  # unused lanes: an empty leaf
     rows = _collapse(bounds, child, count, work_f, work_i)
-    buf = np.empty(rows * ROW + 16, np.int32)
+    units_i = np.zeros((2 * rows, UNIT), np.int32)
+    units = _to_units(work_f, work_i, rows, units_i)
+    buf = np.empty(units * UNIT + 16, np.int32)
     start = (-buf.ctypes.data % 64) // 4
-    nodes_i = buf[start:start + rows * ROW].reshape(rows, ROW)
-    nodes_i[:] = work_i[:rows]
+    nodes_i = buf[start:start + units * UNIT].reshape(units, UNIT)
+    nodes_i[:] = units_i[:units]
     return nodes_i.view(np.float32), nodes_i

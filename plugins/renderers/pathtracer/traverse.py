@@ -1,8 +1,9 @@
-"""Ray queries against the 8-wide BVH: closest hit and any hit (shadow rays).
+"""Ray queries against the wide BVH: closest hit and any hit (shadow rays).
 
-Traversal is iterative with an explicit stack. Each step tests the ray against the eight child
-boxes of one wide node at once (:func:`.simd.box8`, packed single-precision SIMD with
-conservative rounding, so no box the ray meets is missed); of the children hit, the nearest is
+Traversal is iterative with an explicit stack. Each step tests the ray against the eight (or, in
+a narrow node, four) child boxes of one wide node at once (:func:`.simd.box8`, :func:`.simd.box4`:
+packed single-precision SIMD with conservative rounding, so no box the ray meets is missed). A
+node's code says which (bit 0, see :func:`.bvh.pack_wide`). Of the children hit, the nearest is
 visited next and the others are pushed, farthest deepest (closest hit) so that they are skipped
 once a closer hit is known. Ray-triangle tests follow the watertight algorithm of Woop, Benthin
 and Wald (JCGT 2013): the ray is sheared so that it points along +z, and the 2D edge functions are
@@ -12,6 +13,13 @@ triangles that share it (no cracks between triangles).
 Geometry arrays: ``tri_v`` (T, 9) float32 rows ``v0 v1 v2``; ``nodes_f`` and ``nodes_i``, the two
 views of :func:`.bvh.pack_wide`. ``stack_n`` (int32) and ``stack_t`` (float32) are scratch arrays
 of at least :func:`stack_size` entries, allocated by the caller (once per thread).
+
+No reference counting: Numba increments and decrements the reference count of an array (an
+atomic instruction on a counter that both threads share) where it is passed to an inlined helper
+inside these loops, and its pruning pass cannot remove the pairs there. The prefetches of pushed
+children are therefore written out in place, not in a helper taking the arrays;
+``tests/test_pathtracer_geometry.py::test_traversal_has_no_reference_counting`` checks the
+machine code.
 """
 
 from __future__ import annotations
@@ -19,12 +27,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .bvh import LEAF_BITS, WIDTH
-from .simd import FAR_SCALE, box8, lowest_bit, prefetch
+from .bvh import LEAF_BITS, NARROW, ROOT, UNIT, WIDTH
+from .simd import FAR_SCALE, box4, box8, lowest_bit, prefetch
 
 INF = np.inf
 LEAF_MASK = (1 << LEAF_BITS) - 1
-CHILD_COL = 6 * WIDTH
+CODES8 = 6 * WIDTH - UNIT  # column of the child codes of an 8-wide node, in its second unit
+CODES4 = 6 * NARROW  # the same in a 4-wide node's unit
 F32_INF = np.float32(np.inf)
 WIDEN = 2.0**-22  # relative outward shift of rounded origins: at least 1.5 float32 ulps after rounding
 TINY = 2.0**-126  # the same near 0 (the smallest normal float32)
@@ -137,15 +146,6 @@ def _shear(dx, dy, dz):
     return kx, ky, kz, sx, sy, sz
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _prefetch_child(nodes_f, tri_v, code):
-    """Ask for the node row, or the leaf's first triangle rows, of child ``code``."""
-    if code >= 0:
-        prefetch(nodes_f, code, 4)
-    else:
-        prefetch(tri_v, (-1 - code) >> LEAF_BITS, 2)
-
-
 @njit(cache=True, error_model="numpy")
 def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_n, stack_t):
     """Nearest intersection along a ray.
@@ -173,20 +173,31 @@ def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, sta
     best = -1
     bb1 = 0.0
     bb2 = 0.0
-    node = 0
+    node = ROOT
     sp = 0
     while True:
         if node >= 0:
-            mask = box8(nodes_f, node, ray, cols, stack_t, sp)
+            unit = node >> 1
+            if node & 1:
+                mask = box8(nodes_f, unit, ray, cols, stack_t, sp)
+                crow, ccol = unit + 1, CODES8
+            else:
+                mask = box4(nodes_f, unit, ray, cols, stack_t, sp)
+                crow, ccol = unit, CODES4
             if mask != 0:
                 k = lowest_bit(mask)
                 mask &= mask - 1
                 if mask == 0:
-                    node = nodes_i[node, CHILD_COL + k]
+                    node = nodes_i[crow, ccol + k]
                     continue
                 # push the children hit (distances compacted down from box8's scratch), nearest on top
-                ck = nodes_i[node, CHILD_COL + k]
-                _prefetch_child(nodes_f, tri_v, ck)
+                ck = nodes_i[crow, ccol + k]
+                if ck >= 0:  # ask for the child's node (2 or 4 lines), or its leaf's first triangles
+                    prefetch(nodes_f, ck >> 1, 2)
+                    if ck & 1:
+                        prefetch(nodes_f, (ck >> 1) + 1, 2)
+                else:
+                    prefetch(tri_v, (-1 - ck) >> LEAF_BITS, 2)
                 stack_n[sp] = ck
                 stack_t[sp] = stack_t[sp + k]
                 top = sp + 1
@@ -194,8 +205,13 @@ def closest_hit(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, sta
                     k = lowest_bit(mask)
                     mask &= mask - 1
                     tk = stack_t[sp + k]
-                    ck = nodes_i[node, CHILD_COL + k]
-                    _prefetch_child(nodes_f, tri_v, ck)
+                    ck = nodes_i[crow, ccol + k]
+                    if ck >= 0:  # ask for the child's node (2 or 4 lines), or its leaf's first triangles
+                        prefetch(nodes_f, ck >> 1, 2)
+                        if ck & 1:
+                            prefetch(nodes_f, (ck >> 1) + 1, 2)
+                    else:
+                        prefetch(tri_v, (-1 - ck) >> LEAF_BITS, 2)
                     j = top
                     while j > sp and stack_t[j - 1] < tk:
                         stack_t[j] = stack_t[j - 1]
@@ -239,21 +255,31 @@ def occluded(ox, oy, oz, dx, dy, dz, tmax, skip, tri_v, nodes_f, nodes_i, stack_
     kx, ky, kz, sx, sy, sz = _shear(dx, dy, dz)
     px, py, pz = _pick(ox, oy, oz, kx), _pick(ox, oy, oz, ky), _pick(ox, oy, oz, kz)
     ray, cols = ray_setup(ox, oy, oz, dx, dy, dz, tmax)
-    node = 0
+    node = ROOT
     sp = 0
     while True:
         if node >= 0:
-            mask = box8(nodes_f, node, ray, cols, stack_t, sp)
+            unit = node >> 1
+            if node & 1:
+                mask = box8(nodes_f, unit, ray, cols, stack_t, sp)
+                crow, ccol = unit + 1, CODES8
+            else:
+                mask = box4(nodes_f, unit, ray, cols, stack_t, sp)
+                crow, ccol = unit, CODES4
             if mask != 0:
                 k = lowest_bit(mask)
                 mask &= mask - 1
-                row = node
-                node = nodes_i[row, CHILD_COL + k]
+                node = nodes_i[crow, ccol + k]
                 while mask != 0:  # the others on the stack, in lane order
                     k = lowest_bit(mask)
                     mask &= mask - 1
-                    ck = nodes_i[row, CHILD_COL + k]
-                    _prefetch_child(nodes_f, tri_v, ck)
+                    ck = nodes_i[crow, ccol + k]
+                    if ck >= 0:  # ask for the child's node (2 or 4 lines), or its leaf's first triangles
+                        prefetch(nodes_f, ck >> 1, 2)
+                        if ck & 1:
+                            prefetch(nodes_f, (ck >> 1) + 1, 2)
+                    else:
+                        prefetch(tri_v, (-1 - ck) >> LEAF_BITS, 2)
                     stack_n[sp] = ck
                     sp += 1
                 continue
