@@ -223,3 +223,30 @@ def test_spot_light_direct_lighting_matches_its_closed_form(tmp_path):
     assert floor.sum() > 300 and (falloff == 1.0).sum() > 10 and ((falloff > 0) & (falloff < 1)).sum() > 10
     assert (falloff == 0).sum() > 10
     np.testing.assert_allclose(frame["color"].astype(np.float64)[floor], expected, rtol=1e-4, atol=1e-6)
+
+
+def test_texture_lookup_wraps_and_blends_bilinearly():
+    """tex_rgb against a NumPy restatement of the lookup (texel centres at (c + 0.5) / w and
+    1 - (r + 0.5) / h, wrapping in both directions) at uv far outside [0, 1], on texel centres
+    and on the wrap seams, with a uv scale and offset."""
+    from plugins.renderers.pathtracer.shading import tex_rgb
+
+    rng = np.random.default_rng(5)
+    h, w = 3, 5
+    img = rng.random((h, w, 3)).astype(np.float32)
+    data = np.concatenate([np.zeros(6, np.float32), img.ravel()])  # a second texture's data first
+    off, tw, th = np.array([0, 6]), np.array([2, w], np.int32), np.array([1, h], np.int32)
+    uv = np.array([[1.0, 1.0, 0.0, 0.0], [1.5, 0.75, 0.25, -0.5]])
+    us = np.concatenate([rng.uniform(-2.3, 3.7, 60), (np.arange(w) + 0.5) / w, [0.0, 1.0, -1.0, 2.0]])
+    vs = np.concatenate([rng.uniform(-2.3, 3.7, 60), (np.arange(w) + 0.5) / h, [0.0, 1.0, 2.0, -1.0]])
+    for u, v in zip(us, vs):
+        x = (u * 1.5 + 0.25) % 1.0 * w - 0.5
+        y = (1.0 - (v * 0.75 - 0.5) % 1.0) * h - 0.5
+        x0, y0 = np.floor(x), np.floor(y)
+        fx, fy = x - x0, y - y0
+        i0, j0 = int(x0) % w, int(y0) % h
+        i1, j1 = (i0 + 1) % w, (j0 + 1) % h
+        want = ((1 - fy) * ((1 - fx) * img[j0, i0] + fx * img[j0, i1])
+                + fy * ((1 - fx) * img[j1, i0] + fx * img[j1, i1]))
+        got = tex_rgb(1, u, v, data, off, tw, th, uv)
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)

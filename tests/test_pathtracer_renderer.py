@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from harness import CHANNELS, CameraPath, Environment, Material, Scene, SceneObject, load_plugins
+from harness import CHANNELS, CameraPath, Environment, Material, Scene, SceneObject, Sun, load_plugins
 from plugins.renderers.pathtracer import PathTracer
 from plugins.renderers.pathtracer.rng import stream_key, uniform
 from plugins.renderers.pathtracer.schedule import take
@@ -119,6 +119,26 @@ def test_deterministic_and_thread_count_independent(box):
     assert not np.array_equal(a["color"], c["color"])  # the seed matters
     d = renderer.render(box, 1, spp=3, seed=7)
     assert not np.array_equal(a["color"], d["color"])  # so does the frame index
+
+
+def test_last_segment_as_any_hit_query_changes_nothing():
+    """Where no material emits, a path's last segment is an any-hit query (does it escape?); an
+    emitting material that no triangle uses forces the closest-hit query there, and the images
+    must be the same bit for bit (sky and sun through the open front of the box)."""
+    lit = box_scene(size=(20, 16), emission=0.0)
+    unlit = dict(objects=lit.objects, camera=lit.camera, resolution=lit.resolution,
+                 environment=Environment("sky", radiance=(0.2, 0.3, 0.6), horizon=(0.6, 0.6, 0.6)),
+                 sun=Sun(direction=(0.3, 1.0, 0.8), angular_radius=2.0, radiance=200.0))
+    dark = Scene("pt-open-box", materials=lit.materials, **unlit)
+    forced = Scene("pt-open-box-forced", materials=[*lit.materials, Material("unused", emission=(1.0, 1.0, 1.0))],
+                   **unlit)
+    for max_depth, strategy in ((3, "mis"), (4, "light"), (5, "bsdf"), (6, "mis")):
+        kwargs = dict(spp=4, seed=3, channels={"direct", "indirect", "variance"})
+        a = PathTracer(max_depth=max_depth, strategy=strategy).render(dark, 0, **kwargs)
+        b = PathTracer(max_depth=max_depth, strategy=strategy).render(forced, 0, **kwargs)
+        assert (a["indirect"] > 0).mean() > 0.2  # light that came in through the front, bounced
+        for name in ("color", "direct", "variance"):
+            np.testing.assert_array_equal(a[name], b[name])
 
 
 def test_primary_rays_are_the_cameras(box):

@@ -241,3 +241,30 @@ def test_wide_bvh_matches_brute_force_on_axis_aligned_geometry():
         if k >= 0:
             assert not occluded(*o, *d, t * (1 - 1e-9), -1, tri_v, nodes_f, nodes_i, sn, st)
     assert hits > 200
+
+
+def test_wide_nodes_hold_their_children_by_decreasing_box_area():
+    """The lanes of every wide node (8- and 4-wide) are ordered by decreasing box area, so that an
+    any-hit query, which visits the lowest lane it hits first, tries the largest box first."""
+    rng = np.random.default_rng(4)
+    centres = rng.random((1500, 1, 3)) * rng.choice([1.0, 10.0], (1500, 1, 1))
+    verts = (centres + rng.normal(size=(1500, 3, 3)) * 0.2).astype(np.float32)
+    bounds, child, count, order, depth = build_bvh(verts)
+    nodes_f, nodes_i = pack_wide(bounds, child, count)
+    flat_f, flat_i = nodes_f.ravel().astype(np.float64), nodes_i.ravel()
+    todo, nodes, lanes_seen = [ROOT], 0, 0
+    while todo:
+        code = todo.pop()
+        width = 8 if code & 1 else 4
+        start = (code >> 1) * UNIT
+        codes = flat_i[start + 6 * width:start + 7 * width]
+        used = np.flatnonzero(codes != -1)
+        planes = flat_f[start:start + 6 * width].reshape(6, width)[:, used]
+        d = planes[3:] - planes[:3]
+        area = d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+        assert (np.diff(area) <= 0).all()
+        assert (used == np.arange(len(used))).all()  # the empty lanes come last
+        todo += [int(c) for c in codes if c >= 0]
+        nodes += 1
+        lanes_seen += len(used)
+    assert nodes > 100 and lanes_seen > 2 * nodes

@@ -75,8 +75,13 @@ def surface(tri, b1, b2, tri_v, tri_n, tri_uv):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, max_depth, rr_depth,
-                 strategy, stack_n, stack_t):
+                 strategy, emissive, stack_n, stack_t):
     """Radiance of one path starting at a known first hit.
+
+    ``emissive``: whether any material emits (:func:`any_emission`). Where none does, the last
+    segment of a path (whose end point would only add its emission) is an any-hit query that
+    asks whether the path escapes, about twice as fast as a closest-hit query; the radiance is
+    the same, bit for bit.
 
     Returns
     -------
@@ -234,8 +239,14 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
             tg /= q
             tb /= q
         o = (p[0] + ng[0] * side, p[1] + ng[1] * side, p[2] + ng[2] * side)
-        hit, t, hb1, hb2 = closest_hit(o[0], o[1], o[2], wi[0], wi[1], wi[2], np.inf, tri,
-                                       tri_v, nodes_f, nodes_i, stack_n, stack_t)
+        if emissive or bounce + 3 <= max_depth:
+            hit, t, hb1, hb2 = closest_hit(o[0], o[1], o[2], wi[0], wi[1], wi[2], np.inf, tri,
+                                           tri_v, nodes_f, nodes_i, stack_n, stack_t)
+        else:  # the last segment where no surface emits: only whether it escapes matters
+            if occluded(o[0], o[1], o[2], wi[0], wi[1], wi[2], np.inf, tri, tri_v, nodes_f, nodes_i, stack_n,
+                        stack_t):
+                break
+            hit, t, hb1, hb2 = -1, np.inf, 0.0, 0.0
         if hit < 0:
             er, eg, eb = infinite_radiance(wi, lp, env_img)
             w = 1.0
@@ -260,6 +271,15 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
         seg_len = t
         bounce += 1
     return lr, lg, lb, dr, dg, db, vrays, vhits
+
+
+@njit(cache=True, error_model="numpy")
+def any_emission(mat_emit):
+    """True if some material has a positive emission component (the test of :func:`trace_sample`)."""
+    for m in range(mat_emit.shape[0]):
+        if mat_emit[m, 0] > 0.0 or mat_emit[m, 1] > 0.0 or mat_emit[m, 2] > 0.0:
+            return True
+    return False
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -373,6 +393,7 @@ def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, de
         Workers taking tasks in turn (``numba.get_num_threads()``; see :mod:`.schedule`).
     """
     n = origins.shape[0]
+    emissive = any_emission(mats[2])
     tasks = (n + TASK - 1) // TASK
     counter = np.zeros(1, np.int64)
     for _ in prange(min(max(threads, 1), tasks)):
@@ -400,7 +421,7 @@ def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, de
                     key = stream_key(seed, frame, i, start[i] + k)
                     r, g, b, xr, xg, xb, vr, vh = trace_sample(key, o, d, tri[i], bary[i, 0], bary[i, 1], geom, mats,
                                                                lights, lp, eps, max_depth, rr_depth, strategy,
-                                                               stack_n, stack_t)
+                                                               emissive, stack_n, stack_t)
                     if not (math.isfinite(r) and math.isfinite(g) and math.isfinite(b)
                             and math.isfinite(xr) and math.isfinite(xg) and math.isfinite(xb)):
                         r = g = b = xr = xg = xb = 0.0

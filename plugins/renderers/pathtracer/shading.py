@@ -38,6 +38,14 @@ def _bilinear(tex_data, k00, k01, k10, k11, fx, fy):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
+def _wrap(i, n):
+    """``i % n`` (Python's, in [0, n)) without the integer division where ``i`` is already in range."""
+    if 0 <= i < n:
+        return i
+    return i % n
+
+
+@njit(cache=True, error_model="numpy", inline="always")
 def tex_rgb(k, u, v, tex_data, tex_off, tex_w, tex_h, tex_uv):
     """Texture ``k`` at harness uv (bilinear, wrapping).
 
@@ -58,10 +66,10 @@ def tex_rgb(k, u, v, tex_data, tex_off, tex_w, tex_h, tex_uv):
     y0 = math.floor(y)
     fx = x - x0
     fy = y - y0
-    i0 = int(x0) % w
-    j0 = int(y0) % h
-    i1 = (i0 + 1) % w
-    j1 = (j0 + 1) % h
+    i0 = _wrap(int(x0), w)
+    j0 = _wrap(int(y0), h)
+    i1 = _wrap(i0 + 1, w)
+    j1 = _wrap(j0 + 1, h)
     k00 = off + (j0 * w + i0) * 3
     k01 = off + (j0 * w + i1) * 3
     k10 = off + (j1 * w + i0) * 3
@@ -156,10 +164,10 @@ def tex_gradient(k, u, v, tex_data, tex_off, tex_w, tex_h, tex_uv):
     y0 = math.floor(y)
     fx = x - x0
     fy = y - y0
-    i0 = int(x0) % w
-    j0 = int(y0) % h
-    i1 = (i0 + 1) % w
-    j1 = (j0 + 1) % h
+    i0 = _wrap(int(x0), w)
+    j0 = _wrap(int(y0), h)
+    i1 = _wrap(i0 + 1, w)
+    j1 = _wrap(j0 + 1, h)
     a00 = _luminance_at(tex_data, off + (j0 * w + i0) * 3)
     a01 = _luminance_at(tex_data, off + (j0 * w + i1) * 3)
     a10 = _luminance_at(tex_data, off + (j1 * w + i0) * 3)
