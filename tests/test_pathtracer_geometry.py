@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyvista as pv
+from numba import njit
 
 from plugins.renderers.pathtracer.bvh import build_bvh, pack_wide
 from plugins.renderers.pathtracer.traverse import closest_hit, occluded, stack_size
@@ -111,16 +112,17 @@ def test_traversal_has_no_reference_counting():
     """No atomic reference-count updates per ray or per node (see the docstring of ``traverse``).
 
     Mutation check: with the children's prefetches moved back into an inlined helper taking the
-    arrays, both functions call ``NRT_incref`` again."""
+    arrays, both functions call ``NRT_incref`` again. The functions are compiled afresh here
+    (same flags, no cache): Numba cannot show the IR of code it loaded from its disk cache."""
     verts = np.zeros((1, 3, 3), np.float32)
     verts[0] = [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
     ordered, nodes_f, nodes_i, count, order, depth = _prepare(verts)
     tri_v = np.ascontiguousarray(ordered.reshape(-1, 9))
     sn, st = _stacks(depth)
     args = (0.2, 0.2, 1.0, 0.0, 0.0, -1.0, np.inf, -1, tri_v, nodes_f, nodes_i, sn, st)
-    closest_hit(*args)
-    occluded(*args)
     for fn, name in ((closest_hit, "closest_hit"), (occluded, "occluded")):
-        for llvm_ir in fn.inspect_llvm().values():
+        fresh = njit(error_model="numpy")(fn.py_func)
+        fresh(*args)
+        for llvm_ir in fresh.inspect_llvm().values():
             body = _function_body(llvm_ir, name)
             assert "NRT_incref" not in body and "NRT_decref" not in body, name
