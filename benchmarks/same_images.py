@@ -2,12 +2,17 @@
 
     git archive REV | tar -x -C /tmp/before
     python benchmarks/same_images.py --baseline /tmp/before [--width 64 --height 36 --spp 4 --max-depth 8]
+    python benchmarks/same_images.py --baseline /tmp/before --builtin
 
 Loads ``classroom``, ``living-room`` and ``sponza`` from ``../shared/scenes`` with this project's
 Mitsuba loader and with the copy's, renders each with both path tracers (same seed, spp and
 resolution) and prints, per scene, whether colour and variance are bit-identical and the largest
 difference. Used where a change must leave those scenes' images (and so their region ratios to
 Mitsuba 3, ``docs/pathtracer.md``) as they were.
+
+``--builtin``: instead, every registered ``mesh`` scene (first and last frame, at most 128x96,
+8 spp, seed 2), both renderers on the same scene object; colour, variance, visibility and the
+direct part compared, so that the default run's leaderboard is known to be unchanged.
 """
 
 from __future__ import annotations
@@ -37,9 +42,13 @@ def main() -> None:
     parser.add_argument("--height", type=int, default=36)
     parser.add_argument("--spp", type=int, default=4)
     parser.add_argument("--max-depth", type=int, default=8)
+    parser.add_argument("--builtin", action="store_true", help="compare the registered mesh scenes instead")
     args = parser.parse_args()
     old_tracer, old_load = baseline(args.baseline.resolve())
     warnings.simplefilter("ignore")
+    if args.builtin:
+        builtin(old_tracer)
+        return
     root = Path(__file__).resolve().parent.parent.parent / "shared" / "scenes"
     for name in SCENES:
         folder = root / name
@@ -52,6 +61,28 @@ def main() -> None:
         same = all(np.array_equal(new[k], old[k], equal_nan=True) for k in ("color", "variance"))
         diff = float(np.nanmax(np.abs(new["color"].astype(np.float64) - old["color"])))
         print(f"{name}: {'bit-identical' if same else 'different'} (largest colour difference {diff:.3g})")
+
+
+def builtin(old_tracer) -> None:
+    """Every registered mesh scene rendered by both path tracers: bit-identical or not."""
+    from harness import load_plugins
+
+    channels = ("color", "variance", "visibility", "direct")
+    for name, spec in sorted(load_plugins().scenes.items()):
+        try:
+            scene = spec.factory()
+        except (OSError, ValueError) as exc:  # a third-party scene not beside the project
+            print(f"{name}: skipped ({exc})")
+            continue
+        if scene.kind != "mesh":
+            continue
+        w, h = scene.resolution
+        for frame in sorted({0, scene.frame_count - 1}):
+            kwargs = dict(spp=8, seed=2, channels=set(channels), resolution=(min(w, 128), min(h, 96)))
+            new = PathTracer().render(scene, frame, **kwargs)
+            old = old_tracer().render(scene, frame, **kwargs)
+            same = all(np.array_equal(new[k], old[k], equal_nan=True) for k in channels)
+            print(f"{name} frame {frame}: {'bit-identical' if same else 'different'}", flush=True)
 
 
 if __name__ == "__main__":
