@@ -27,6 +27,7 @@ import pytest
 
 from plugins.scenes.mitsuba import MitsubaWarning, load
 from plugins.scenes.mitsuba import sunsky as hw
+from plugins.scenes.mitsuba.sun_sky import SKY_MAP_HEIGHT
 
 SKY_RTOL = 1e-4
 SUN_RTOL = 2.5e-3
@@ -191,14 +192,15 @@ def test_a_mitsuba_06_sunsky_renders_as_mitsuba3_reads_it(mi, tmp_path):
     assert any("Hosek-Wilkie model evaluated" in m for m in scene.params["approximations"])
     p = hw.SunskyParams(**{k: v for k, v in record.items() if k != "model"})
     env = scene.environment
-    assert env.kind == "map" and env.image.shape == (512, 1024, 3)
+    height = SKY_MAP_HEIGHT
+    assert env.kind == "map" and env.image.shape == (height, 2 * height, 3)
     lp = np.zeros(L.N_PARAMS)
     lp[L.ENV_KIND] = L.ENV_MAP
     lp[L.ENV_RAD:L.ENV_RAD + 3] = env.radiance
     lp[L.SUN_COS] = 1.0
     rng = np.random.default_rng(3)
-    rows, cols = rng.integers(0, 512, 200), rng.integers(0, 1024, 200)
-    d = hw.map_directions(512)[rows, cols]
+    rows, cols = rng.integers(0, height, 200), rng.integers(0, 2 * height, 200)
+    d = hw.map_directions(height)[rows, cols]
     ours = np.array([L.infinite_radiance.py_func(v, lp, env.image) for v in d])
     sky_only = mitsuba_emitter(mi, hw.SunskyParams(**{**p.__dict__, "sun_scale": 0.0}))
     theirs = mitsuba_radiance(mi, sky_only, d)
@@ -251,5 +253,6 @@ def test_sky_and_sun_kinds_and_mitsuba3_frames(mi, tmp_path):
     image = scene.environment.image
     assert np.allclose(scene.params["sunsky"]["to_world"], np.eye(3))
     assert scene.sun.angular_radius == pytest.approx(1.0)
-    # z up: the map's +z and -z texels (row 255, u = 0 and 0.5) are lit and black
-    assert image[255, 0].min() > 0.0 and image[255, 512].max() == 0.0
+    # z up: the map's +z and -z texels (the row above the horizon, u = 0 and 0.5) are lit and black
+    row = SKY_MAP_HEIGHT // 2 - 1
+    assert image[row, 0].min() > 0.0 and image[row, SKY_MAP_HEIGHT].max() == 0.0

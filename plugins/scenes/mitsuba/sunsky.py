@@ -349,7 +349,7 @@ def map_directions(height: int) -> np.ndarray:
                      -st * np.cos(phi)[None, :]], axis=-1)
 
 
-def bake_sky(params: SunskyParams, tables: dict, height: int = 512) -> np.ndarray:
+def bake_sky(params: SunskyParams, tables: dict, height: int = 256) -> np.ndarray:
     """The sky (without the sun) as a harness environment map (height, 2 height, 3) float32.
 
     Each texel holds the radiance towards its centre (the path tracer reads maps by nearest texel
