@@ -72,7 +72,8 @@ def package_versions() -> dict:
 
 
 def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: dict | None = None,
-                  reused_jobs: int = 0, scene_approximations: dict | None = None) -> dict:
+                  reused_jobs: int = 0, scene_approximations: dict | None = None,
+                  source: dict | None = None) -> dict:
     """The manifest of a stored results table.
 
     Parameters
@@ -89,6 +90,9 @@ def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: di
     scene_approximations : dict, optional
         Scene name -> what its plugin renders approximately
         (:meth:`harness.renders.RenderStore.scene_approximations`); kept for the table's scenes.
+    source : dict, optional
+        :func:`provenance` as it was when the run started (default: now); a checkout that
+        changes during a long run must not be recorded as the code that ran.
     """
     from harness import __version__
 
@@ -99,7 +103,7 @@ def make_manifest(registry, table: pd.DataFrame, *, settings: dict, executor: di
         refs[f"{r.scene}/{r.renderer}/{r.frame}"] = r.reference_hash
         error = None if pd.isna(r.reference_error) else float(r.reference_error)
         quality[f"{r.scene}/{r.renderer}/{r.frame}"] = {"spp": int(r.reference_spp), "median_relative_error": error}
-    source = provenance()
+    source = source or provenance()
     return {
         "harness_version": __version__,
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),

@@ -36,7 +36,7 @@ from harness.exr import write_exr
 from harness.images import write_pictures
 from harness.jobs import GroupInputs, job_error_rows, skipped_row
 from harness.lock import FolderLock, check_out_dir
-from harness.manifest import make_manifest, write_manifest
+from harness.manifest import make_manifest, provenance, write_manifest
 from harness.nonfinite import apply_nonfinite_policy
 from harness.plan import Group, Plan
 from harness.references import reference_record
@@ -140,6 +140,7 @@ class _Run:
         self._stopped = threading.Event()  # the run was interrupted: group threads store nothing more
 
     def execute(self) -> RunOutcome:
+        source = provenance()  # the code that runs: the checkout may change before the run ends
         self.jobs_dir.mkdir(parents=True, exist_ok=True)
         stored = self._prune()
         if not self.resume:
@@ -163,7 +164,8 @@ class _Run:
             manifest = make_manifest(self.registry, table, settings=self.plan.settings,
                                      executor=self.executor.describe(), reused_jobs=self.reused,
                                      scene_approximations=self.store.scene_approximations(
-                                         sorted(set(table.scene)) if len(table) else []))
+                                         sorted(set(table.scene)) if len(table) else []),
+                                     source=source)
             write_manifest(manifest, self.out / "manifest.json")
         return RunOutcome(table, self.reused, self.removed, manifest)
 

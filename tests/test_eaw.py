@@ -367,3 +367,37 @@ def test_parallel_path_matches_oracle():
     ch = scene_channels(h, w, seed=9, sky_rows=40, extra=("variance",))
     params = dict(iterations=3, sigma_rt=4.0)
     assert rel_err(make_filter("cpu", **params)(frame_of(ch)), oracle(ch, **params)) < 1e-5
+
+
+@pytest.mark.parametrize("bands", [1, 2, 3, 5, 8])
+def test_output_does_not_depend_on_the_band_cut(monkeypatch, bands):
+    """Each band refills its ring with the weights of the rows above it: any cut of the rows
+    into bands (here more bands than threads) gives the same image bit for bit."""
+    from plugins.filters.eaw import cpu
+
+    ch = scene_channels(257, 256, seed=4, sky_rows=30, extra=("variance",))
+    reference = make_filter("cpu", iterations=5)(frame_of(ch))
+    monkeypatch.setattr(cpu, "get_num_threads", lambda: bands)
+    np.testing.assert_array_equal(make_filter("cpu", iterations=5)(frame_of(ch)), reference)
+
+
+@pytest.mark.parametrize("step", [1, 4, 16])
+def test_bands_have_equal_work_with_their_ring_refill(step):
+    """Every band after the first also computes ``2 step`` rows of weights: counted in, the
+    estimated work of the bands is equal to within a row's."""
+    from plugins.filters.eaw import cpu
+    from plugins.filters.eaw.layout import Buffers, prepare
+
+    h, w = 720, 64
+    ch = scene_channels(h, w, seed=1, sky_rows=100, extra=("variance",))
+    b = Buffers(h, w, 32)
+    prepare(frame_of(ch), EAWParams.from_kwargs(iterations=5), b)
+    lengths = np.where(np.arange(8)[None, :] < b.run_count[:, None], b.runs[:, :, 1] - b.runs[:, :, 0], 0)
+    weights = 2.0 * w * (b.row_surface != 0)
+    row_cost = weights + lengths.sum(axis=1) + 0.05 * w
+    for parts in (2, 3, 4):
+        starts = cpu.balanced_rows(b, parts, step)
+        assert starts[0] == 0 and starts[-1] == h and np.all(np.diff(starts) >= 0)
+        work = [row_cost[s:e].sum() + (weights[max(s - 2 * step, 0):s].sum() if t else 0.0)
+                for t, (s, e) in enumerate(zip(starts[:-1], starts[1:]))]
+        assert max(work) - min(work) <= 2 * row_cost.max() + 2 * step * 2 * w * 0.1, (parts, work)

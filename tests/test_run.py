@@ -323,3 +323,19 @@ def test_mesh_scenes_run_end_to_end_with_the_path_tracer(tmp_path):
     assert np.isfinite(df[["rmse", "ssim", "flip", "relmse"]].to_numpy()).all()
     street = df[df.scene == "street"]
     assert street.groupby("filter").temporal_error.count().eq(1).all()
+
+
+def test_manifest_records_the_code_at_the_start_of_the_run(tmp_path, monkeypatch):
+    """A checkout that changes while a run goes on (a commit, a pull) is not what ran: the
+    manifest keeps the commit read when the run started."""
+    import harness.manifest
+    import harness.run
+
+    def at(commit):
+        return lambda: {"git_commit": commit, "dirty": False, "version": "0"}
+
+    monkeypatch.setattr(harness.run, "provenance", at("a" * 40))  # read at the start
+    monkeypatch.setattr(harness.manifest, "provenance", at("b" * 40))  # what the checkout holds later
+    run_api(load_plugins(), tmp_path, ["synthetic-static"], ["passthrough"], ["rmse"], frames=1, repeats=1)
+    manifest = json.loads((tmp_path / "o" / "manifest.json").read_text())
+    assert manifest["git_commit"] == "a" * 40
