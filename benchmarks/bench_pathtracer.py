@@ -6,6 +6,7 @@ Usage::
                                           [--repeats 3] [--scenes atrium classroom] [--no-mitsuba]
                                           [--baseline FOLDER]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
+                                          [--mitsuba-spp N] [--baseline FOLDER]
     python benchmarks/bench_pathtracer.py --threads 1 2 --no-mitsuba [--scenes classroom]
 
 ``--baseline FOLDER``: FOLDER is a copy of the project at an earlier commit (``git archive REV |
@@ -179,13 +180,15 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     raise RuntimeError("could not load the scene into Mitsuba 3")
 
 
-def mitsuba_frame(folder: Path, scene, args, tmp: Path):
-    """A function rendering one frame of the scene with Mitsuba 3 ``scalar_rgb`` (returns the image)."""
+def mitsuba_frame(folder: Path, scene, args, tmp: Path, spp: int | None = None):
+    """A function rendering one frame of the scene with Mitsuba 3 ``scalar_rgb`` (returns the image);
+    ``spp`` samples per pixel (default ``args.spp``)."""
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
     mscene = mitsuba_scene(folder, scene, args, tmp)
-    return lambda: np.asarray(mi.render(mscene, spp=args.spp, seed=0), np.float64)[..., :3]
+    spp = spp or args.spp
+    return lambda: np.asarray(mi.render(mscene, spp=spp, seed=0), np.float64)[..., :3]
 
 
 def region_means(image: np.ndarray, grid: int = 4) -> np.ndarray:
@@ -202,7 +205,8 @@ def ratios(registry, args) -> None:
 
     old = baseline(args.baseline.resolve()) if args.baseline is not None else None
     size = (args.width, args.height)
-    print(f"{args.width}x{args.height}, {args.spp} spp, max_depth {args.max_depth}; 4x4 regions, harness / Mitsuba 3")
+    print(f"{args.width}x{args.height}, {args.spp} spp (Mitsuba 3: {args.mitsuba_spp or args.spp}), max_depth "
+          f"{args.max_depth}; 4x4 regions, harness / Mitsuba 3")
     for name in args.scenes:
         folder = SCENES / name
         scene = harness_scene(registry, name)
@@ -218,7 +222,7 @@ def ratios(registry, args) -> None:
             images[" (baseline)"] = old[0](max_depth=args.max_depth, rr_depth=args.rr_depth).reference(
                 old_scene, 0, spp=args.spp, resolution=size)
         with tempfile.TemporaryDirectory() as tmp:
-            theirs = mitsuba_frame(folder, scene, args, Path(tmp))()
+            theirs = mitsuba_frame(folder, scene, args, Path(tmp), args.mitsuba_spp)()
         for label, ours in images.items():
             r = region_means(ours.astype(np.float64)) / np.maximum(region_means(theirs), 1e-12)
             whole = ours.mean(axis=(0, 1)) / np.maximum(theirs.mean(axis=(0, 1)), 1e-12)
@@ -263,6 +267,8 @@ def main() -> None:
     parser.add_argument("--no-mitsuba", action="store_true")
     parser.add_argument("--baseline", type=Path, default=None, help="folder with a copy of an earlier pathtracer")
     parser.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
+    parser.add_argument("--mitsuba-spp", type=int, default=None,
+                        help="with --ratios: Mitsuba 3's samples per pixel (default --spp)")
     parser.add_argument("--threads", type=int, nargs="+", default=None,
                         help="time our path tracer with each of these Numba thread counts")
     args = parser.parse_args()
