@@ -189,16 +189,18 @@ def _rmse(registry, out, inputs: GroupInputs, job: Job) -> float:
 def time_floor(spec, frames: Sequence, repeats: int) -> dict:
     """The timing protocol applied to the floor of ``spec`` on ``frames`` (its last frame's timing).
 
-    ``frames`` are what the filter sees (its declared channels); the floor is warmed up on the
-    first frame and every frame is timed with ``repeats`` calls, as :func:`harness.jobs.run_job`
-    does for the filter.
+    ``frames`` are what the filter sees (its declared channels); every frame is timed with
+    ``repeats`` calls, as :func:`harness.jobs.run_job` does for the filter, each frame after a
+    warm-up call (on a copy: the state goes on from the timed calls): a temporal floor also
+    reads its history from the second frame on, a new input layout and so a new kernel to
+    compile, which a timed call must not include.
     """
     floor, fspec = floor_of(spec)
     floor.reset()
     timing: dict = {}
-    for t, frame in enumerate(frames):
+    for frame in frames:
         # not validated: its output is a sum, infinite where an input is (depth of the background)
-        floor, _, timing, _ = time_frame(floor, fspec, "cpu", frame, t == 0, repeats)
+        floor, _, timing, _ = time_frame(floor, fspec, "cpu", frame, True, repeats)
     return timing
 
 

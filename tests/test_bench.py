@@ -205,3 +205,31 @@ def test_inline_bench_keeps_the_thread_count_of_the_caller(tmp_path):
     result = bench_filters(registry, store, InlineExecutor(registry), ["threads_probe"], resolutions=[(32, 24)],
                            threads=[1], repeats=1, error=False)
     assert list(result.table["threads"]) == [1] and compute_threads() == before
+
+
+def test_temporal_floor_is_warmed_up_on_its_history_layout_before_it_is_timed(monkeypatch):
+    """From the second frame a temporal floor reads one more buffer (its history): a kernel of
+    another layout, compiled by a warm-up call, never inside the timed calls."""
+    import harness.bench
+    import harness.floor
+
+    monkeypatch.setattr(harness.floor, "_KERNELS", {})  # nothing compiled yet in this process
+    compiled_during_timed_calls = []
+    real_time_frame = harness.bench.time_frame
+
+    def time_frame(filt, spec, backend, frame, first, repeats, *args, **kwargs):
+        if not first:
+            before = len(harness.floor._KERNELS)
+            result = real_time_frame(filt, spec, backend, frame, first, repeats, *args, **kwargs)
+            compiled_during_timed_calls.append(len(harness.floor._KERNELS) - before)
+            return result
+        return real_time_frame(filt, spec, backend, frame, first, repeats, *args, **kwargs)
+
+    monkeypatch.setattr(harness.bench, "time_frame", time_frame)
+    spec = FilterSpec(name="t", version="0", factory=lambda backend="cpu": None, requires={"color", "normal"},
+                      temporal=True)
+    frames = [Frame(random_frame(seed=s)) for s in range(3)]
+    timing = harness.bench.time_floor(spec, frames, repeats=1)
+    assert timing["repeats"] == 1 and math.isfinite(timing["ms_median"])
+    assert len(harness.floor._KERNELS) == 2  # without and with the history
+    assert sum(compiled_during_timed_calls) == 0
