@@ -6,6 +6,7 @@ Usage::
                                           [--repeats 3] [--scenes atrium classroom] [--no-mitsuba]
                                           [--baseline FOLDER]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
+                                          [--mitsuba-spp N] [--baseline FOLDER]
     python benchmarks/bench_pathtracer.py --threads 1 2 --no-mitsuba [--scenes classroom]
 
 ``--baseline FOLDER``: FOLDER is a copy of the project at an earlier commit (``git archive REV |
@@ -20,9 +21,12 @@ all three see the same machine load.
 ``--ratios``: instead of timing, converged images of the third-party scenes (``--scenes``,
 default classroom, living-room, sponza) by both renderers, and the ratio harness / Mitsuba 3 of
 the mean of each region of a 4x4 grid (RGB averaged): median, minimum and maximum, and the
-ratio of the whole image. Mitsuba 3 gets the harness's lights where the harness approximates the
-scene's (sun/sky), ``diffuse`` for ``roughdiffuse`` and the harness's ``roughplastic`` for
-``phong`` (Mitsuba 3 has neither), so that the ratios measure the materials.
+ratio of the whole image. Mitsuba 3 gets ``diffuse`` for ``roughdiffuse`` and the harness's
+``roughplastic`` for ``phong`` (Mitsuba 3 has neither), so that the ratios measure the materials;
+a ``sun``/``sky``/``sunsky`` emitter becomes Mitsuba 3's own ``sunsky`` with the parameters that
+the harness's loader read (``Scene.params["sunsky"]``: Mitsuba 3's semantics, see
+``plugins/scenes/mitsuba/sun_sky.py``). With ``--baseline FOLDER`` the earlier copy's loader and
+path tracer render each scene too, and their ratios to the same Mitsuba 3 image are printed.
 
 For each scene: paths per second and milliseconds per ``spp``-sample frame (median of
 ``repeats`` timed frames after one warm-up frame; wall clock, ``time.perf_counter_ns``, plus the
@@ -30,9 +34,8 @@ process CPU time, which is steadier on a shared machine). A timed frame is a com
 primary rays, first hits and the path samples (the BVH is built once per scene, during the
 warm-up, as Mitsuba builds its own when loading). Then, in the same process, Mitsuba 3
 (``scalar_rgb`` variant, ``path`` integrator, same resolution, spp, ``max_depth`` and Russian
-roulette depth) renders ``../shared/scenes/classroom/scene.xml`` with the lights that the
-harness's Mitsuba loader gives our renderer: the sun as a directional light of the same
-irradiance and direction, the sky gradient as an environment map. The third-party scene folder
+roulette depth) renders ``../shared/scenes/classroom/scene.xml`` with its sun and sky as Mitsuba
+3's ``sunsky`` of the parameters the harness read (as in ``--ratios``). The third-party scene folder
 is found next to the project root and the benchmark skips it, with a message, when it is absent.
 """
 
@@ -121,15 +124,19 @@ def _camel(name: str) -> str:
     return head + "".join(p.title() for p in rest)
 
 
-def _sky_map(env, path: Path, height: int = 64) -> None:
-    """Write the sky gradient of a harness ``Environment`` as an equirectangular EXR."""
-    import mitsuba as mi
-
-    theta = (np.arange(height) + 0.5) / height * math.pi
-    t = np.maximum(np.cos(theta), 0.0)[:, None]
-    rgb = np.asarray(env.horizon)[None, :] + (np.asarray(env.radiance) - np.asarray(env.horizon))[None, :] * t
-    img = np.repeat(rgb[:, None, :], 2 * height, axis=1).astype(np.float32)
-    mi.Bitmap(img).write(str(path))
+def _sunsky_xml(record: dict) -> str:
+    """Mitsuba 3's own ``sunsky`` emitter with the parameters the harness's loader read (``Scene.params["sunsky"]``)."""
+    d, m, albedo = record["sun_direction"], record["to_world"], record["albedo"]
+    matrix = " ".join(f"{v:.9g}" for v in [*m[0], 0.0, *m[1], 0.0, *m[2], 0.0, 0.0, 0.0, 0.0, 1.0])
+    albedo = (f'<float name="albedo" value="{albedo[0]:.9g}"/>' if albedo[0] == albedo[1] == albedo[2] else
+              f'<rgb name="albedo" value="{albedo[0]:.9g}, {albedo[1]:.9g}, {albedo[2]:.9g}"/>')
+    return (f'<emitter type="sunsky"><vector name="sun_direction" x="{d[0]:.9g}" y="{d[1]:.9g}" z="{d[2]:.9g}"/>'
+            f'<float name="turbidity" value="{record["turbidity"]:.9g}"/>{albedo}'
+            f'<float name="sky_scale" value="{record["sky_scale"]:.9g}"/>'
+            f'<float name="sun_scale" value="{record["sun_scale"]:.9g}"/>'
+            f'<float name="sun_aperture" value="{record["sun_aperture"]:.9g}"/>'
+            f'<boolean name="complex_sun" value="{str(bool(record["complex_sun"])).lower()}"/>'
+            f'<transform name="to_world"><matrix value="{matrix}"/></transform></emitter>')
 
 
 def _phong_as_roughplastic(match) -> str:
@@ -143,7 +150,7 @@ def _phong_as_roughplastic(match) -> str:
 
 
 def mitsuba_scene(folder: Path, scene, args, tmp: Path):
-    """Load a Mitsuba 0.6 scene into Mitsuba 3 with our path settings and the harness's lights."""
+    """Load a Mitsuba 0.6 scene into Mitsuba 3 with our path settings (its sun and sky as Mitsuba 3's ``sunsky``)."""
     import mitsuba as mi
 
     xml = (folder / "scene.xml").read_text()
@@ -157,17 +164,8 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     xml = xml.replace('"trilinear"', '"bilinear"')
     xml = xml.replace('<bsdf type="roughdiffuse"', '<bsdf type="diffuse"')
     xml = re.sub(r'<bsdf type="phong"(.*?)</bsdf>', _phong_as_roughplastic, xml, flags=re.S)
-    lights = []
-    if scene.sun is not None:
-        solid = 2 * math.pi * (1 - math.cos(math.radians(scene.sun.angular_radius)))
-        e = [v * solid for v in scene.sun.radiance]
-        d = [-v for v in scene.sun.direction]
-        lights.append(f'<emitter type="directional"><vector name="direction" x="{d[0]}" y="{d[1]}" z="{d[2]}"/>'
-                      f'<rgb name="irradiance" value="{e[0]}, {e[1]}, {e[2]}"/></emitter>')
-    if scene.environment is not None and scene.environment.kind in ("sky", "constant"):
-        sky = tmp / "sky.exr"
-        _sky_map(scene.environment, sky)
-        lights.append(f'<emitter type="envmap"><string name="filename" value="{sky}"/></emitter>')
+    record = scene.params.get("sunsky")
+    lights = [_sunsky_xml(record)] if record is not None else []
     xml = re.sub(r"<emitter type=\"(sunsky|sun|sky)\".*?</emitter>", "".join(lights), xml, flags=re.S)
     mi.file_resolver().prepend(str(folder))
     for _ in range(50):  # Mitsuba 3 rejects parameters it does not use: drop them one by one
@@ -182,13 +180,15 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     raise RuntimeError("could not load the scene into Mitsuba 3")
 
 
-def mitsuba_frame(folder: Path, scene, args, tmp: Path):
-    """A function rendering one frame of the scene with Mitsuba 3 ``scalar_rgb`` (returns the image)."""
+def mitsuba_frame(folder: Path, scene, args, tmp: Path, spp: int | None = None):
+    """A function rendering one frame of the scene with Mitsuba 3 ``scalar_rgb`` (returns the image);
+    ``spp`` samples per pixel (default ``args.spp``)."""
     import mitsuba as mi
 
     mi.set_variant("scalar_rgb")
     mscene = mitsuba_scene(folder, scene, args, tmp)
-    return lambda: np.asarray(mi.render(mscene, spp=args.spp, seed=0), np.float64)[..., :3]
+    spp = spp or args.spp
+    return lambda: np.asarray(mi.render(mscene, spp=spp, seed=0), np.float64)[..., :3]
 
 
 def region_means(image: np.ndarray, grid: int = 4) -> np.ndarray:
@@ -203,23 +203,32 @@ def ratios(registry, args) -> None:
     """Region-mean ratios harness / Mitsuba 3 of converged images (see the module docstring)."""
     from plugins.renderers.pathtracer import PathTracer
 
+    old = baseline(args.baseline.resolve()) if args.baseline is not None else None
     size = (args.width, args.height)
-    print(f"{args.width}x{args.height}, {args.spp} spp, max_depth {args.max_depth}; 4x4 regions, harness / Mitsuba 3")
+    print(f"{args.width}x{args.height}, {args.spp} spp (Mitsuba 3: {args.mitsuba_spp or args.spp}), max_depth "
+          f"{args.max_depth}; 4x4 regions, harness / Mitsuba 3")
     for name in args.scenes:
         folder = SCENES / name
         scene = harness_scene(registry, name)
         if scene is None or not (folder / "scene.xml").is_file():
             print(f"skipping {name!r}: no scene folder {folder}")
             continue
-        ours = PathTracer(max_depth=args.max_depth, rr_depth=args.rr_depth).reference(scene, 0, spp=args.spp,
-                                                                                     resolution=size)
+        images = {"": PathTracer(max_depth=args.max_depth, rr_depth=args.rr_depth).reference(scene, 0, spp=args.spp,
+                                                                                            resolution=size)}
+        if old is not None:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                old_scene = old[1](folder)
+            images[" (baseline)"] = old[0](max_depth=args.max_depth, rr_depth=args.rr_depth).reference(
+                old_scene, 0, spp=args.spp, resolution=size)
         with tempfile.TemporaryDirectory() as tmp:
-            theirs = mitsuba_frame(folder, scene, args, Path(tmp))()
-        r = region_means(ours.astype(np.float64)) / np.maximum(region_means(theirs), 1e-12)
-        whole = ours.mean(axis=(0, 1)) / np.maximum(theirs.mean(axis=(0, 1)), 1e-12)
-        print(f"{name:<12} median {np.median(r):.3f}  min {r.min():.3f}  max {r.max():.3f}  "
-              f"whole image (r, g, b) {whole[0]:.3f} {whole[1]:.3f} {whole[2]:.3f}", flush=True)
-        print("  regions (rows top to bottom):", "; ".join(" ".join(f"{v:.2f}" for v in row) for row in r))
+            theirs = mitsuba_frame(folder, scene, args, Path(tmp), args.mitsuba_spp)()
+        for label, ours in images.items():
+            r = region_means(ours.astype(np.float64)) / np.maximum(region_means(theirs), 1e-12)
+            whole = ours.mean(axis=(0, 1)) / np.maximum(theirs.mean(axis=(0, 1)), 1e-12)
+            print(f"{name + label:<12} median {np.median(r):.3f}  min {r.min():.3f}  max {r.max():.3f}  "
+                  f"whole image (r, g, b) {whole[0]:.3f} {whole[1]:.3f} {whole[2]:.3f}", flush=True)
+            print("  regions (rows top to bottom):", "; ".join(" ".join(f"{v:.2f}" for v in row) for row in r))
 
 
 def report(rows: list[dict], args) -> None:
@@ -258,6 +267,8 @@ def main() -> None:
     parser.add_argument("--no-mitsuba", action="store_true")
     parser.add_argument("--baseline", type=Path, default=None, help="folder with a copy of an earlier pathtracer")
     parser.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
+    parser.add_argument("--mitsuba-spp", type=int, default=None,
+                        help="with --ratios: Mitsuba 3's samples per pixel (default --spp)")
     parser.add_argument("--threads", type=int, nargs="+", default=None,
                         help="time our path tracer with each of these Numba thread counts")
     args = parser.parse_args()

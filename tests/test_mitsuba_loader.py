@@ -239,7 +239,8 @@ def test_mitsuba3_snake_case_names(tmp_path):
     assert material.ior == pytest.approx(1.6 / 1.000277)
     assert np.abs(scene.triangles(0).vertices).max() == pytest.approx(0.5)
     assert scene.sun.direction == pytest.approx((0.0, 1.0, 0.0))
-    assert scene.environment.kind == "sky"
+    assert scene.params["sunsky"]["sun_scale"] == 2.0
+    assert scene.environment.kind == ("map" if scene.params["sunsky"]["model"] == "hosek-wilkie" else "sky")
 
 
 def test_nested_ids_resolve_anywhere(tmp_path):

@@ -39,7 +39,7 @@ from .bsdf import (
     is_delta,
     is_transmissive,
 )
-from .lights import DELTA_LIGHT, infinite_pdf, infinite_radiance, sample_light
+from .lights import DELTA_LIGHT, infinite_radiance, infinite_radiance_pdf, sample_light
 from .materials import HAS_MASK, ONE_SIDED_EMISSION
 from .rng import stream_key, uniform
 from .schedule import take
@@ -248,13 +248,12 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
                 break
             hit, t, hb1, hb2 = -1, np.inf, 0.0, 0.0
         if hit < 0:
-            er, eg, eb = infinite_radiance(wi, lp, env_img)
+            er, eg, eb, pl = infinite_radiance_pdf(wi, lp, env_img, cdf_rows, cdf_cols)
             w = 1.0
             if not dlt:
                 if strategy == LIGHT_ONLY:
                     w = 0.0
                 elif strategy == MIS:
-                    pl = infinite_pdf(wi, lp, env_img, cdf_rows, cdf_cols)
                     w = pdf * pdf / (pdf * pdf + pl * pl)
             lr += tr * er * w
             lg += tg * eg * w

@@ -73,7 +73,9 @@ def _rot_y(x, z, angle):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def _map_pixel(d, lp, h, w):
-    x, z = _rot_y(d[0], d[2], -lp[ENV_ROT])
+    x, z = d[0], d[2]
+    if lp[ENV_ROT] != 0.0:
+        x, z = _rot_y(x, z, -lp[ENV_ROT])
     u = 0.5 + math.atan2(x, -z) / (2.0 * math.pi)
     v = math.acos(min(max(d[1], -1.0), 1.0)) / math.pi
     col = min(max(int(u * w), 0), w - 1)
@@ -82,10 +84,9 @@ def _map_pixel(d, lp, h, w):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def infinite_radiance(d, lp, env_img):
-    """Radiance (r, g, b) arriving from the unit direction ``d`` from sun and environment."""
+def _radiance_at(d, lp, env_img, kind, row, col):
+    """Sun plus environment radiance towards ``d``; ``row``, ``col``: the map's texel of ``d`` (maps only)."""
     r = g = b = 0.0
-    kind = int(lp[ENV_KIND])
     if kind == ENV_CONSTANT:
         r, g, b = lp[ENV_RAD], lp[ENV_RAD + 1], lp[ENV_RAD + 2]
     elif kind == ENV_SKY:
@@ -94,7 +95,6 @@ def infinite_radiance(d, lp, env_img):
         g = lp[ENV_HORIZON + 1] + (lp[ENV_RAD + 1] - lp[ENV_HORIZON + 1]) * t
         b = lp[ENV_HORIZON + 2] + (lp[ENV_RAD + 2] - lp[ENV_HORIZON + 2]) * t
     elif kind == ENV_MAP:
-        row, col = _map_pixel(d, lp, env_img.shape[0], env_img.shape[1])
         r = env_img[row, col, 0] * lp[ENV_RAD]
         g = env_img[row, col, 1] * lp[ENV_RAD + 1]
         b = env_img[row, col, 2] * lp[ENV_RAD + 2]
@@ -108,25 +108,39 @@ def infinite_radiance(d, lp, env_img):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def infinite_pdf(d, lp, env_img, cdf_rows, cdf_cols):
-    """Solid-angle density with which :func:`sample_light` produces the escaping direction ``d``."""
+def infinite_radiance(d, lp, env_img):
+    """Radiance (r, g, b) arriving from the unit direction ``d`` from sun and environment."""
+    kind = int(lp[ENV_KIND])
+    row = col = 0
+    if kind == ENV_MAP:
+        row, col = _map_pixel(d, lp, env_img.shape[0], env_img.shape[1])
+    return _radiance_at(d, lp, env_img, kind, row, col)
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def infinite_radiance_pdf(d, lp, env_img, cdf_rows, cdf_cols):
+    """:func:`infinite_radiance` of ``d`` and the solid-angle density with which :func:`sample_light`
+    produces the escaping direction ``d`` (one map lookup serves both)."""
+    kind = int(lp[ENV_KIND])
+    h, w = env_img.shape[0], env_img.shape[1]
+    row = col = 0
+    if kind == ENV_MAP:
+        row, col = _map_pixel(d, lp, h, w)
+    r, g, b = _radiance_at(d, lp, env_img, kind, row, col)
     pdf = 0.0
     if lp[P_SUN] > 0.0:
         c = d[0] * lp[SUN_DIR] + d[1] * lp[SUN_DIR + 1] + d[2] * lp[SUN_DIR + 2]
         if c >= lp[SUN_COS]:
             pdf += lp[P_SUN] / (2.0 * math.pi * (1.0 - lp[SUN_COS]))
     if lp[P_ENV] > 0.0:
-        kind = int(lp[ENV_KIND])
         if kind == ENV_MAP:
-            h, w = env_img.shape[0], env_img.shape[1]
-            row, col = _map_pixel(d, lp, h, w)
             sin_t = math.sqrt(max(1.0 - d[1] * d[1], 0.0))
             if sin_t > 0.0:
                 mass = (cdf_rows[row + 1] - cdf_rows[row]) * (cdf_cols[row, col + 1] - cdf_cols[row, col])
                 pdf += lp[P_ENV] * mass * (w * h) / (2.0 * math.pi * math.pi * sin_t)
         else:
             pdf += lp[P_ENV] / (4.0 * math.pi)
-    return pdf
+    return r, g, b, pdf
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -216,10 +230,10 @@ def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_fro
             st = math.sqrt(max(1.0 - ct * ct, 0.0))
             phi = 2.0 * math.pi * u2
             d = (st * math.cos(phi), ct, st * math.sin(phi))
-    pdf = infinite_pdf(d, lp, env_img, cdf_rows, cdf_cols)
+    r, g, b, pdf = infinite_radiance_pdf(d, lp, env_img, cdf_rows, cdf_cols)
     if pdf <= 0.0:
         return zero, 0.0, zero, 0.0, -1
-    return d, np.inf, infinite_radiance(d, lp, env_img), pdf, -1
+    return d, np.inf, (r, g, b), pdf, -1
 
 
 @njit(cache=True, error_model="numpy")

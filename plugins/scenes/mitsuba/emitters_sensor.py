@@ -11,7 +11,6 @@ from harness import CameraPath, Environment, Sun, read_texture
 
 from .xmlscene import find, get_color, get_float, get_int, get_string, transform, vector, warn
 
-SUN_RADIUS = 0.2667  # degrees, Mitsuba's sun
 # The path tracer has no delta lights: Mitsuba's directional light becomes a disc this small
 # (degrees) of the same irradiance, its point light an emitting sphere of this radius (a fraction
 # of the scene's bounding-box diagonal) of the same intensity.
@@ -20,7 +19,10 @@ POINT_RADIUS = 1e-3
 
 
 def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | None, Sun | None]:
-    """An ``<emitter>`` that is not attached to a shape as (environment, sun); either may be None."""
+    """An ``<emitter>`` that is not attached to a shape as (environment, sun); either may be None.
+
+    The sun and sky kinds are :func:`sun_and_sky`'s.
+    """
     kind = node.get("type")
     if kind == "constant":
         radiance = get_color(node, "radiance", (1.0, 1.0, 1.0), illuminant=True)
@@ -31,31 +33,6 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
         image = read_texture(folder / get_string(node, "filename"))
         image = envmap_to_harness(image, matrix[:3, :3])
         return Environment(kind="map", image=image, radiance=(scale, scale, scale)), None
-    if kind in ("sun", "sky", "sunsky"):
-        direction_node = find(node, "sunDirection")
-        if direction_node is not None:
-            direction = vector(direction_node)
-        else:
-            warn(f"{kind}: sun position from date, time and location is not computed; using 45 degrees elevation")
-            direction = np.array([0.5, 0.7071, 0.5])
-        env = sun = None
-        if kind in ("sky", "sunsky"):
-            scale = get_float(node, "skyScale" if kind == "sunsky" else "scale", 1.0)
-            warn(f"{kind}: Hosek-Wilkie sky approximated by a zenith-to-horizon gradient (scale {scale:g}): the "
-                 "harness does not evaluate the model yet (its published coefficients are not shipped with the "
-                 "harness; the copy in Mitsuba 3's package, data/sunsky/sunsky_datasets.bin, is not read)")
-            env = Environment(kind="sky", radiance=(0.06 * scale, 0.1 * scale, 0.2 * scale),
-                              horizon=(0.16 * scale, 0.17 * scale, 0.18 * scale))
-        if kind in ("sun", "sunsky"):
-            scale = get_float(node, "sunScale" if kind == "sunsky" else "scale", 1.0)
-            radius = SUN_RADIUS * get_float(node, "sunRadiusScale", 1.0)
-            solid_angle = 2 * np.pi * (1 - np.cos(np.radians(radius)))
-            irradiance = 1.0 * scale  # approximate: Mitsuba's sun at scale 1 is roughly unit irradiance here
-            warn(f"{kind}: sun approximated by a white disc of irradiance {irradiance:g} at normal incidence "
-                 "(the Hosek-Wilkie solar radiance for the turbidity and elevation is not computed)")
-            radiance = (irradiance / solid_angle,) * 3
-            sun = Sun(direction=tuple(direction), angular_radius=radius, radiance=radiance)
-        return env, sun
     if kind == "directional":
         return None, directional(node)
     warn(f"emitter type {kind!r} is not supported and was skipped")

@@ -14,6 +14,8 @@ from harness import Material, Scene, SceneObject
 from .bsdfs import BsdfContext, describe, has_texture, is_glossy, material
 from .emitters_sensor import camera, environment_and_sun, point_light, spot_light
 from .shapes import load_shape, sphere, to_polydata
+from .sun_sky import KINDS as SUN_SKY_KINDS
+from .sun_sky import sun_and_sky
 from .xmlscene import MitsubaWarning, get_color, parse, version, warn
 
 SKIPPED_QUIETLY = {"default", "integrator"}
@@ -52,7 +54,8 @@ def load(path: Path, name: str | None = None) -> Scene:
     distinct messages are kept in ``scene.params["approximations"]`` (for the run's manifest);
     nothing is fatal except an unreadable file. Every material's Mitsuba BSDF is described in
     ``scene.params["bsdfs"]`` (see :mod:`.bsdfs`), spot lights in ``scene.params["delta_lights"]``
-    (see :func:`.emitters_sensor.spot_light`).
+    (see :func:`.emitters_sensor.spot_light`), a ``sun``/``sky``/``sunsky`` emitter's Mitsuba 3
+    parameters and the model used in ``scene.params["sunsky"]`` (see :func:`.sun_sky.sun_and_sky`).
     """
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MitsubaWarning)
@@ -105,6 +108,7 @@ def _load(path: Path, name: str | None) -> Scene:
     cache: dict = {}
     points = []
     delta_lights: list[dict] = []
+    sunsky = None
     for node in root:
         tag = node.tag
         if tag == "shape":
@@ -127,6 +131,10 @@ def _load(path: Path, name: str | None) -> Scene:
             points.append(node)
         elif tag == "emitter" and node.get("type") == "spot":
             delta_lights.append(spot_light(node))
+        elif tag == "emitter" and node.get("type") in SUN_SKY_KINDS:
+            env, s, sunsky = sun_and_sky(node, version(root))
+            environment = env or environment
+            sun = s or sun
         elif tag == "emitter":
             env, s = environment_and_sun(node, folder)
             environment = env or environment
@@ -161,7 +169,7 @@ def _load(path: Path, name: str | None) -> Scene:
     if delta_lights:
         tags.add("spot")
     if environment is not None:
-        tags.add("sky" if environment.kind == "sky" else "environment")
+        tags.add("sky" if environment.kind == "sky" or sunsky is not None else "environment")
     return Scene(
         name=name or folder.name,
         frame_count=1,
@@ -173,7 +181,8 @@ def _load(path: Path, name: str | None) -> Scene:
         environment=environment,
         camera=cam,
         params={"format": "mitsuba", "version": ".".join(map(str, version(root))), "file": xml_path.name,
-                "film_resolution": list(film), "bsdfs": table.entries, "delta_lights": delta_lights},
+                "film_resolution": list(film), "bsdfs": table.entries, "delta_lights": delta_lights,
+                **({"sunsky": sunsky} if sunsky is not None else {})},
         max_depth=5,
         source=str(folder),
     )
