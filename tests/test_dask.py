@@ -224,8 +224,12 @@ def test_an_interrupted_cluster_run_resumes_like_a_local_one(tmp_path):
         return ["run", "--scenes", "synthetic-moving", "--filters", "passthrough,gaussian,median3", "--spp", "1,2,4,8",
                 "--frames", "4", "--resolution", "160x120", "--repeats", "30", "--seeds", "0", "--timing-at", "none",
                 "--quiet", "--cache-dir",
-                tmp_path / "cache", "--out", tmp_path / out, *extra]
+                tmp_path / f"cache-{executor}", "--out", tmp_path / out, *extra]
 
+    # the local run first: every kernel the runs use is compiled (Numba's cache) before the interrupted
+    # run starts, so the interrupt meets the run's steady state (in a fresh CI environment it twice came
+    # while kernels were being compiled and the run went on to the end; noted in the issue, not solved)
+    bench(args("local", "clean"))
     proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *map(str, args("dask", "k"))], env=bench_env(),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     jobs = tmp_path / "k" / "jobs"
@@ -243,7 +247,6 @@ def test_an_interrupted_cluster_run_resumes_like_a_local_one(tmp_path):
     resumed = bench([*args("dask", "k"), "--resume"])
     assert f"{len(stored)} stored jobs reused (--resume)" in resumed.stdout
     assert all((jobs / p).stat().st_mtime_ns == t for p, t in before.items())  # not recomputed
-    bench(args("local", "clean"))
     pd.testing.assert_frame_equal(comparable(pd.read_parquet(tmp_path / "k" / "results.parquet")),
                                   comparable(pd.read_parquet(tmp_path / "clean" / "results.parquet")))
 
