@@ -226,9 +226,7 @@ def test_an_interrupted_cluster_run_resumes_like_a_local_one(tmp_path):
                 "--quiet", "--cache-dir",
                 tmp_path / f"cache-{executor}", "--out", tmp_path / out, *extra]
 
-    # the local run first: every kernel the runs use is compiled (Numba's cache) before the interrupted
-    # run starts, so the interrupt meets the run's steady state (in a fresh CI environment it twice came
-    # while kernels were being compiled and the run went on to the end; noted in the issue, not solved)
+    # the local run first: every kernel the runs use is compiled (Numba's cache) before the interrupted run
     bench(args("local", "clean"))
     # SIGINT as a terminal gives it: a process inherits an ignored SIGINT (something in a full test session
     # leaves the test process ignoring it), and an ignored SIGINT stays ignored in the run
