@@ -36,21 +36,6 @@ def prepare(frame, params, stride, skip):
     return buf, buf.state
 
 
-def passes(buf, coefficients, taps, color, out):
-    """All iterations, the last one writing ``out`` as the filter does."""
-    threads = get_num_threads()
-    ring, scratch = buf.thread_scratch(threads, coefficients.shape[0])
-    starts = cpu.balanced_rows(buf, threads)
-    src, dst = buf.color
-    last = coefficients.shape[0] - 1
-    for i in range(last + 1):
-        a_c, a_n, a_x = (np.float32(v) for v in coefficients[i])
-        cpu.atrous_pass(src, dst, buf.guide, buf.state, buf.runs, buf.run_count, buf.row_surface, buf.halo,
-                        buf.stride, 2**i, a_c, max(a_n, np.float32(layout.A_N_MIN)), a_x, taps, starts, ring,
-                        scratch, i == last, color, out, 1.0, 1.0)
-        src, dst = dst, src
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--resolution", default="1280x720")
@@ -74,15 +59,14 @@ def main() -> None:
     }
     prepared = {name: prepare(frame, params, *v) for name, v in variants.items()}
     color = frame["color"]
-    out = color.copy()
     for buf, _ in prepared.values():
-        passes(buf, coefficients, taps, color, out)  # compile / warm up
+        cpu.iterate(buf, coefficients, taps, color, 1.0)  # compile / warm up
     wall = {name: [] for name in variants}
     proc = {name: [] for name in variants}
     for _ in range(args.rounds):
         for name, (buf, _) in prepared.items():
             t0, c0 = time.perf_counter(), time.process_time()
-            passes(buf, coefficients, taps, color, out)
+            cpu.iterate(buf, coefficients, taps, color, 1.0)
             wall[name].append((time.perf_counter() - t0) * 1e3)
             proc[name].append((time.process_time() - c0) * 1e3)
     active = np.mean(prepared[next(iter(prepared))][1] == layout.ACTIVE)

@@ -14,7 +14,7 @@ import pytest
 
 from harness import CHANNELS, Frame, FrameMeta, load_plugins
 from plugins.filters.eaw import make_filter
-from plugins.filters.eaw.fastexp import A_MAX, fast_exp_array
+from plugins.filters.eaw.fastexp import T_MAX, exp2_minus_array
 from plugins.filters.eaw.layout import padded_stride
 from plugins.filters.eaw.params import DEFAULTS, EAWParams
 
@@ -128,13 +128,22 @@ def rel_err(a, b) -> float:
 # ---------------------------------------------------------------- fast exp
 
 
-def test_fast_exp_error_bound():
-    a = np.linspace(0.0, A_MAX, 400_001).astype(np.float32)
-    got = fast_exp_array(a).astype(np.float64)
-    assert np.max(np.abs(got / np.exp(-a.astype(np.float64)) - 1.0)) < 1e-6
-    special = fast_exp_array(np.array([0.0, 1e-30, A_MAX + 1, 1e30, 3e38], np.float32))
-    assert special[0] == 1.0 and abs(special[1] - 1.0) < 1e-7
+def test_exp2_error_bound():
+    t = np.linspace(0.0, T_MAX, 2_000_001).astype(np.float32)
+    got = exp2_minus_array(t).astype(np.float64)
+    assert np.max(np.abs(got / np.exp2(-t.astype(np.float64)) - 1.0)) < 5e-7
+    special = exp2_minus_array(np.array([0.0, 1e-30, T_MAX + 1e-3, 1e30, 3e38], np.float32))
+    assert special[0] == 1.0 and special[1] == 1.0
     assert np.all(special[2:] == 0.0)
+
+
+def test_exp2_is_a_normal_float_down_to_its_cut():
+    """The power of two goes into the exponent bits: right below ``T_MAX`` the result must
+    still be the correct (normal) value, not a wrapped exponent."""
+    t = np.float32(T_MAX) - np.linspace(0.0, 1.0, 1001).astype(np.float32)
+    got = exp2_minus_array(t).astype(np.float64)
+    assert np.all(got >= np.finfo(np.float32).tiny)
+    assert np.max(np.abs(got / np.exp2(-t.astype(np.float64)) - 1.0)) < 5e-7
 
 
 # ---------------------------------------------------------------- oracle agreement
@@ -369,35 +378,58 @@ def test_parallel_path_matches_oracle():
     assert rel_err(make_filter("cpu", **params)(frame_of(ch)), oracle(ch, **params)) < 1e-5
 
 
-@pytest.mark.parametrize("bands", [1, 2, 3, 5, 8])
-def test_output_does_not_depend_on_the_band_cut(monkeypatch, bands):
-    """Each band refills its ring with the weights of the rows above it: any cut of the rows
-    into bands (here more bands than threads) gives the same image bit for bit."""
+@pytest.mark.parametrize("parts", [1, 2, 3, 5, 8])
+def test_output_does_not_depend_on_the_cut_into_parts(monkeypatch, parts):
+    """A part that starts inside a class of rows recomputes the weights of the two rows above
+    it: any cut of the rows into parts (here more parts than threads, and at hole spacings up
+    to 16 on 257 rows) gives the same image bit for bit."""
     from plugins.filters.eaw import cpu
 
     ch = scene_channels(257, 256, seed=4, sky_rows=30, extra=("variance",))
     reference = make_filter("cpu", iterations=5)(frame_of(ch))
-    monkeypatch.setattr(cpu, "get_num_threads", lambda: bands)
+    monkeypatch.setattr(cpu, "get_num_threads", lambda: parts)
     np.testing.assert_array_equal(make_filter("cpu", iterations=5)(frame_of(ch)), reference)
 
 
-@pytest.mark.parametrize("step", [1, 4, 16])
-def test_bands_have_equal_work_with_their_ring_refill(step):
-    """Every band after the first also computes ``2 step`` rows of weights: counted in, the
-    estimated work of the bands is equal to within a row's."""
-    from plugins.filters.eaw import cpu
+def _prepared(h, w, sky_rows):
     from plugins.filters.eaw.layout import Buffers, prepare
 
-    h, w = 720, 64
-    ch = scene_channels(h, w, seed=1, sky_rows=100, extra=("variance",))
     b = Buffers(h, w, 32)
-    prepare(frame_of(ch), EAWParams.from_kwargs(iterations=5), b)
+    prepare(frame_of(scene_channels(h, w, seed=1, sky_rows=sky_rows, extra=("variance",))),
+            EAWParams.from_kwargs(iterations=5), b)
+    return b
+
+
+@pytest.mark.parametrize("step", [1, 4, 16])
+def test_parts_have_equal_work_with_their_ring_refill(step):
+    """The rows go class by class of ``y mod step``; a part that starts inside a class also
+    computes 2 rows of weights: counted in, the estimated work of the parts is equal to within
+    a row's."""
+    from plugins.filters.eaw import cpu
+
+    h, w = 720, 64
+    b = _prepared(h, w, 100)
     lengths = np.where(np.arange(8)[None, :] < b.run_count[:, None], b.runs[:, :, 1] - b.runs[:, :, 0], 0)
     weights = 2.0 * w * (b.row_surface != 0)
     row_cost = weights + lengths.sum(axis=1) + 0.05 * w
     for parts in (2, 3, 4):
-        starts = cpu.balanced_rows(b, parts, step)
+        order, starts = cpu.balanced_parts(b, parts, step)
+        np.testing.assert_array_equal(order, np.concatenate([np.arange(r, h, step) for r in range(step)]))
         assert starts[0] == 0 and starts[-1] == h and np.all(np.diff(starts) >= 0)
-        work = [row_cost[s:e].sum() + (weights[max(s - 2 * step, 0):s].sum() if t else 0.0)
-                for t, (s, e) in enumerate(zip(starts[:-1], starts[1:]))]
-        assert max(work) - min(work) <= 2 * row_cost.max() + 2 * step * 2 * w * 0.1, (parts, work)
+        work = []
+        for s, e in zip(starts[:-1], starts[1:]):
+            refill = sum(weights[order[s] - k * step] for k in (1, 2) if s < h and order[s] - k * step >= 0)
+            work.append(row_cost[order[s:e]].sum() + refill)
+        assert max(work) - min(work) <= 2 * row_cost.max() + 2 * 2 * w, (parts, work)
+
+
+def test_a_cut_between_classes_is_preferred():
+    """With as many classes as parts and rows of equal work, each part is one class: no part
+    recomputes weights another computes."""
+    from plugins.filters.eaw import cpu
+
+    b = _prepared(64, 48, 0)
+    for step in (2, 4):
+        order, starts = cpu.balanced_parts(b, step, step)
+        np.testing.assert_array_equal(starts, np.arange(step + 1) * (64 // step))
+        assert np.all(order[starts[:-1]] < step)

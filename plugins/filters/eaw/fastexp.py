@@ -1,20 +1,22 @@
-"""A branch-free, vectorizable ``exp(-a)`` for non-negative float32 ``a``.
+"""A branch-free, vectorizable ``2**-t`` for non-negative float32 ``t``.
 
 Numba calls libm's scalar ``exp`` (no SVML here), which stops LLVM from vectorizing the
-à-trous inner loop. :func:`fast_exp_minus` evaluates ``exp(-a)`` as ``2**-k * exp(r)`` with
-``k = round(a / ln 2)``, ``r = k ln 2 - a`` in [-ln2/2, ln2/2] (Cody-Waite reduction: ``ln 2``
-split into a short high part and a low part so that ``k ln2_hi`` is exact), a degree-6 Taylor
-polynomial for ``exp(r)`` (truncation error below 1.3e-7) and the power of two built directly
-in the float's exponent bits.
+à-trous inner loop. :func:`exp2_minus` evaluates ``2**-t`` as ``2**-k * 2**r`` with ``k =
+round(t)`` and ``r = k - t`` in [-1/2, 1/2] (exact in float32: ``k`` and ``t`` are within a
+factor 2 of each other, or ``k = 0``), a degree-5 polynomial for ``2**r`` and the power of two
+subtracted from the polynomial's exponent bits. The EAW weight ``h exp(-a)`` is ``2**-(a log2(e)
+- log2(h))``: the caller folds ``log2(e)`` into its coefficients and ``-log2(h)`` into the
+argument, so a weight costs no multiplication outside the polynomial (the arithmetic that
+bounds the filter's speed, see the README).
 
-Error: relative error below 1e-6 for ``a`` in [0, 87.3] (the tests bound it; about 3e-7
-measured); for ``a > A_MAX`` the result is exactly 0 (the true value is below 1.2e-38).
-``exp(-0)`` is exactly 1. Any finite ``a >= 0`` is accepted: the argument is clamped first.
+The polynomial is ``1 + r q(r)`` with ``q`` interpolating ``(2**r - 1) / r`` at the 5 Chebyshev
+nodes of [-1/2, 1/2] (close to the minimax polynomial): relative error below 5e-7 for ``t`` in
+[0, ``T_MAX``] (the tests bound it; 2.6e-7 measured, float32 evaluation included); for ``t >
+T_MAX`` the result is exactly 0 (the true value is below 2.4e-38). ``2**-0`` is exactly 1. Any
+finite ``t >= 0`` is accepted: the argument is clamped first.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from numba import njit, types
@@ -22,13 +24,20 @@ from numba.extending import intrinsic
 
 LOG2E = 1.4426950408889634
 LN2 = 0.6931471805599453
-#: arguments above this give 0 (``2**-126`` is float32's smallest normal number)
-A_MAX = 126.0 * LN2
-LN2_HI = 0.693359375  # 11 significant bits: k * LN2_HI is exact for |k| <= 126
-LN2_LO = LN2 - LN2_HI
-# Taylor coefficients of exp(r): 1 / k!
-_C = tuple(1.0 / math.factorial(k) for k in range(7))
-C0, C1, C2, C3, C4, C5, C6 = (np.float32(c) for c in _C)
+#: arguments above this give 0 (``2**-125`` times the polynomial, at least ``2**-0.5``, is still a
+#: normal float32, so the power of two can go straight into the exponent bits)
+T_MAX = 125.0
+
+
+def _chebyshev_exp2(degree: int) -> tuple:
+    """Monomial coefficients (lowest first) of ``1 + r q(r)``, where ``q`` interpolates ``(2**r -
+    1) / r`` at the ``degree`` Chebyshev nodes of [-1/2, 1/2]: close to the minimax polynomial of
+    ``2**r`` of that degree, and exactly 1 at ``r = 0``."""
+    nodes = 0.5 * np.cos((2 * np.arange(degree) + 1) * np.pi / (2 * degree))
+    return (1.0, *np.polynomial.polynomial.polyfit(nodes, np.expm1(nodes * LN2) / nodes, degree - 1))
+
+
+C0, C1, C2, C3, C4, C5 = (np.float32(c) for c in _chebyshev_exp2(5))
 
 
 @intrinsic
@@ -56,38 +65,36 @@ def float32_bits_as_int32(typingctx, value):
 
 
 @njit(inline="always", cache=True, fastmath=True)
-def fast_exp_minus(a):
-    """``exp(-a)`` for float32 ``a >= 0``, branch-free (see the module notes for its error).
+def exp2_minus(t):
+    """``2**-t`` for float32 ``t >= 0``, branch-free (see the module notes for its error).
 
     Parameters
     ----------
-    a : float32
-        A non-negative, finite argument; values above ``A_MAX`` give 0.
+    t : float32
+        A non-negative, finite argument; values above ``T_MAX`` give 0.
 
     Returns
     -------
     float32
     """
-    under = a > np.float32(A_MAX)
-    a = min(a, np.float32(A_MAX))
-    k = np.int32(a * np.float32(LOG2E) + np.float32(0.5))  # round(a / ln 2), a >= 0
-    kf = np.float32(k)
-    r = (kf * np.float32(LN2_HI) - a) + kf * np.float32(LN2_LO)  # k ln2 - a
-    p = C6
-    p = p * r + C5
+    under = t > np.float32(T_MAX)
+    t = min(t, np.float32(T_MAX))
+    k = np.int32(t + np.float32(0.5))  # round(t), t >= 0
+    r = np.float32(k) - t
+    p = C5
     p = p * r + C4
     p = p * r + C3
     p = p * r + C2
     p = p * r + C1
     p = p * r + C0
-    scale = int32_bits_as_float32(np.int32((np.int32(127) - k) << np.int32(23)))
-    return np.float32(0.0) if under else p * scale
+    scaled = int32_bits_as_float32(np.int32(float32_bits_as_int32(p) - (k << np.int32(23))))
+    return np.float32(0.0) if under else scaled
 
 
 @njit(cache=True, fastmath=True)
-def fast_exp_array(a):
-    """:func:`fast_exp_minus` over a 1-D float32 array (for tests and error bounds)."""
-    out = np.empty_like(a)
-    for i in range(a.shape[0]):
-        out[i] = fast_exp_minus(a[i])
+def exp2_minus_array(t):
+    """:func:`exp2_minus` over a 1-D float32 array (for tests and error bounds)."""
+    out = np.empty_like(t)
+    for i in range(t.shape[0]):
+        out[i] = exp2_minus(t[i])
     return out

@@ -48,8 +48,6 @@ A_N_MIN = 1e-30
 MAX_RUNS = 8
 #: gaps of at most this many inactive pixels are merged into the surrounding run
 MIN_GAP = 16
-#: floats of per-thread accumulator scratch (4 sums of 256 pixels, see :mod:`.cpu`)
-SCRATCH = 4 * 256
 # Rec. 709 luminance weights
 LUMA = (0.2126, 0.7152, 0.0722)
 
@@ -295,19 +293,15 @@ class Buffers:
         self.row_lo = np.zeros((height, 3))
         self.row_hi = np.zeros((height, 3))
         self.ring = np.zeros(0, np.float32)
-        self.scratch = np.zeros(0, np.float32)
 
     def fits(self, height: int, width: int, halo: int) -> bool:
         return (height, width, halo) == (self.height, self.width, self.halo)
 
-    def thread_scratch(self, threads: int, iterations: int):
-        """The ring and accumulator scratch for ``threads`` workers (grown, never shrunk)."""
-        ring = threads * 12 * (2 * 2 ** (iterations - 1) + 1) * self.stride
-        if self.ring.size < ring:
-            self.ring = np.zeros(ring, np.float32)
-        if self.scratch.size < threads * SCRATCH:
-            self.scratch = np.zeros(threads * SCRATCH, np.float32)
-        return self.ring, self.scratch
+    def thread_ring(self, rows: int) -> np.ndarray:
+        """Scratch of at least ``rows`` rows of the stride, zero where never written (grown, never shrunk)."""
+        if self.ring.size < rows * self.stride:
+            self.ring = np.zeros(rows * self.stride, np.float32)
+        return self.ring
 
 
 _NO_IDS = np.zeros((1, 1), np.int32)
