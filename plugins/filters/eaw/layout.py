@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types, uint64
+from numba.extending import intrinsic
 
 from .fastexp import float32_bits_as_int32
 from .fastlog import fast_log
@@ -72,7 +73,40 @@ def finite(x):
     return (float32_bits_as_int32(x) & np.int32(0x7F800000)) != np.int32(0x7F800000)
 
 
-@njit(parallel=True, cache=True, fastmath=True)
+def _select_intrinsic(predicate):
+    """An intrinsic ``f(a, b) = b if predicate(b, a) else a`` on two float32 values whose compare
+    and select carry the ``fast`` flags, as Python's ``min`` (``"<"``) and ``max`` (``">"``)."""
+
+    @intrinsic
+    def select(typingctx, a, b):
+        if a != types.float32 or b != types.float32:
+            return None
+
+        def codegen(context, builder, signature, args):
+            a, b = args
+            take = builder.fcmp_ordered(predicate, b, a, flags=("fast",))
+            return builder.select(take, b, a, flags=("fast",))
+
+        return types.float32(types.float32, types.float32), codegen
+
+    return select
+
+
+#: ``min`` and ``max`` of two float32 values that LLVM vectorizes as reductions: Numba's own
+#: select carries no fast-math flags, and LLVM then keeps a min / max reduction scalar
+fast_min = _select_intrinsic("<")
+fast_max = _select_intrinsic(">")
+
+
+@njit(inline="always", cache=True, fastmath=True)
+def surface_flag(n0, n1, n2, p0, p1, p2):
+    """Whether a pixel of normal ``(n0, n1, n2)`` and position ``(p0, p1, p2)`` (float32) is a
+    surface: the normal is finite and not zero, the position finite (branch-free)."""
+    return (((n0 != 0.0) | (n1 != 0.0) | (n2 != 0.0)) & finite(n0) & finite(n1) & finite(n2)
+            & finite(p0) & finite(p1) & finite(p2))
+
+
+@njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
 def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, has_variance, state,
            row_log, row_count, row_lo, row_hi):
     """Pixel classes and the per-row sums of the colour and position scales, in one pass.
@@ -83,13 +117,13 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
 
     Parameters
     ----------
-    color, normal, position : ndarray (H, W, 3) float32
+    color, normal, position : ndarray (H, W, 3) float32, C-contiguous
     ids : ndarray (H, W) int32
     depth : ndarray (H, W) float32
     variance : ndarray (H, W, 3) float32
     has_ids, has_depth, has_variance : bool
         Whether the three optional channels are real (else 1x1 stand-ins, never read).
-    state : ndarray (H, W) int8
+    state : ndarray (H, W) int8, C-contiguous
         Output: BACKGROUND, STILL or ACTIVE.
     row_log, row_count : ndarray (H,) float64, int64
         Output: per row, the sum of ``log(L)`` over surface pixels whose float32 luminance
@@ -97,18 +131,30 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
     row_lo, row_hi : ndarray (H, 3) float64
         Output: per row, the bounding box of the surface pixels' positions (``lo > hi`` when
         the row has none).
+
+    Notes
+    -----
+    Each row is two branch-free loops that LLVM vectorizes: the classes (then, only where the
+    optional channels are given, a loop each that corrects them), and the sums. The inputs are
+    read through flat views with unsigned indices, so that the channel stride is the constant 3
+    (indexing ``a[y, x, c]`` multiplies by the array's run-time shape and gives gathers).
     """
     h, w = state.shape
+    cf = color.reshape(color.size)
+    nf = normal.reshape(normal.size)
+    pf = position.reshape(position.size)
+    sf = state.reshape(state.size)
     tiny = np.float32(np.finfo(np.float32).tiny)
     big = np.float32(np.inf)
     for r in prange(h):
         y = np.int64(r)
-        # classes, branch-free
+        row = uint64(y * w)
+        row3 = uint64(3) * row
         for x in range(w):
-            n0, n1, n2 = normal[y, x, 0], normal[y, x, 1], normal[y, x, 2]
-            surface = (((n0 != 0.0) | (n1 != 0.0) | (n2 != 0.0)) & finite(n0) & finite(n1) & finite(n2)
-                       & finite(position[y, x, 0]) & finite(position[y, x, 1]) & finite(position[y, x, 2]))
-            state[y, x] = np.int8(surface) * np.int8(ACTIVE)
+            j = row3 + uint64(3) * uint64(x)
+            surface = surface_flag(nf[j], nf[j + uint64(1)], nf[j + uint64(2)], pf[j], pf[j + uint64(1)],
+                                   pf[j + uint64(2)])
+            sf[row + uint64(x)] = np.int8(surface) * np.int8(ACTIVE)
         if has_ids:
             for x in range(w):
                 state[y, x] = state[y, x] if ids[y, x] != -1 else np.int8(BACKGROUND)
@@ -126,18 +172,20 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
         lo0 = lo1 = lo2 = big
         hi0 = hi1 = hi2 = -big
         for x in range(w):
-            surface = state[y, x] != BACKGROUND
-            lum = (np.float32(LUMA[0]) * color[y, x, 0] + np.float32(LUMA[1]) * color[y, x, 1]
-                   + np.float32(LUMA[2]) * color[y, x, 2])
+            j = row3 + uint64(3) * uint64(x)
+            surface = sf[row + uint64(x)] != BACKGROUND
+            lum = (np.float32(LUMA[0]) * cf[j] + np.float32(LUMA[1]) * cf[j + uint64(1)]
+                   + np.float32(LUMA[2]) * cf[j + uint64(2)])
             ok = surface & (lum >= tiny) & finite(lum)
             total += fast_log(lum if ok else np.float32(1.0))
             count += np.int64(ok)
-            lo0 = min(lo0, position[y, x, 0] if surface else big)
-            lo1 = min(lo1, position[y, x, 1] if surface else big)
-            lo2 = min(lo2, position[y, x, 2] if surface else big)
-            hi0 = max(hi0, position[y, x, 0] if surface else -big)
-            hi1 = max(hi1, position[y, x, 1] if surface else -big)
-            hi2 = max(hi2, position[y, x, 2] if surface else -big)
+            p0, p1, p2 = pf[j], pf[j + uint64(1)], pf[j + uint64(2)]
+            lo0 = fast_min(lo0, p0 if surface else big)
+            lo1 = fast_min(lo1, p1 if surface else big)
+            lo2 = fast_min(lo2, p2 if surface else big)
+            hi0 = fast_max(hi0, p0 if surface else -big)
+            hi1 = fast_max(hi1, p1 if surface else -big)
+            hi2 = fast_max(hi2, p2 if surface else -big)
         row_log[y] = total
         row_count[y] = count
         row_lo[y, 0], row_lo[y, 1], row_lo[y, 2] = lo0, lo1, lo2
@@ -183,15 +231,42 @@ def normalised(value, inv_scale):
     return np.float32(min(max(v, -COLOR_MAX), COLOR_MAX))
 
 
-@njit(parallel=True, cache=True)
+@njit(inline="always", cache=True)
+def row_runs(sf, row, w, runs, y):
+    """Write the runs of active pixels of one row (``sf[row:row + w]``) to ``runs[y]`` (see
+    :func:`pack`) and return their number.
+
+    Scans for the edges of the maximal runs of consecutive active pixels; a run that starts
+    fewer than ``MIN_GAP`` pixels after the end of the previous kept run extends it, and
+    from the ``MAX_RUNS``-th kept run on every further run extends the last one.
+    """
+    k = 0
+    x = 0
+    while x < w:
+        if sf[row + uint64(x)] != ACTIVE:
+            x += 1
+            continue
+        start = x
+        while x < w and sf[row + uint64(x)] == ACTIVE:
+            x += 1
+        if k > 0 and (start - runs[y, k - 1, 1] < MIN_GAP or k == MAX_RUNS):
+            runs[y, k - 1, 1] = x
+        else:
+            runs[y, k, 0] = start
+            runs[y, k, 1] = x
+            k += 1
+    return k
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
 def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, stride, cbuf_a, cbuf_b, gbuf,
          runs, run_count, row_surface):
     """Write the interior of the planar buffers (their halo stays zero) and the active runs.
 
     Parameters
     ----------
-    color, normal, position : ndarray (H, W, 3) float32
-    state : ndarray (H, W) int8
+    color, normal, position : ndarray (H, W, 3) float32, C-contiguous
+    state : ndarray (H, W) int8, C-contiguous
     inv_scale : float
         1 / colour scale.
     origin : ndarray (3,) float64
@@ -212,47 +287,58 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
     row_surface : ndarray (H,) uint8
         Output: 1 where the row has a surface pixel (not bool: Numba's alias analysis takes a
         bool read for a possible array view, which costs the kernels their ``noalias``).
+
+    Notes
+    -----
+    Each row is one branch-free loop writing the 13 planes, which LLVM vectorizes (flat input
+    views and unsigned indices, as in :func:`survey`), then a scan of the row's classes for its
+    runs (:func:`row_runs`).
     """
     h, w = state.shape
-    ps = cbuf_a.shape[0] // 3
+    ps = uint64(cbuf_a.shape[0] // 3)
+    cf = color.reshape(color.size)
+    nf = normal.reshape(normal.size)
+    pf = position.reshape(position.size)
+    sf = state.reshape(state.size)
+    o0, o1, o2 = origin[0], origin[1], origin[2]
+    gmax = np.float32(GUIDE_MAX)  # no float32 lies in (float32(GUIDE_MAX), GUIDE_MAX]
+    background = np.float32(BACKGROUND_NORMAL)
+    zero = np.float32(0.0)
     for r in prange(h):
         y = np.int64(r)
-        base = (y + halo) * stride + halo
-        k = 0
-        last = -MIN_GAP - 1
-        surface = False
+        base = uint64((y + halo) * stride + halo)
+        row = uint64(y * w)
+        row3 = uint64(3) * row
+        surfaces = 0
         for x in range(w):
-            i = base + x
-            s = state[y, x]
-            for c in range(3):
-                v = normalised(color[y, x, c], inv_scale)
-                cbuf_a[c * ps + i] = v
-                cbuf_b[c * ps + i] = v
-            if s != BACKGROUND:
-                for c in range(3):
-                    n = min(max(np.float64(normal[y, x, c]), -GUIDE_MAX), GUIDE_MAX)
-                    gbuf[c * ps + i] = np.float32(n)
-                    p = (np.float64(position[y, x, c]) - origin[c]) * inv_pos
-                    gbuf[(3 + c) * ps + i] = np.float32(min(max(p, -GUIDE_MAX), GUIDE_MAX))
-                gbuf[6 * ps + i] = np.float32(1.0)
-                surface = True
-            else:
-                for c in range(3):
-                    gbuf[c * ps + i] = np.float32(BACKGROUND_NORMAL)
-                for c in range(3, 7):
-                    gbuf[c * ps + i] = np.float32(0.0)
-            if s == ACTIVE:
-                if x - last <= MIN_GAP and k > 0:
-                    runs[y, k - 1, 1] = x + 1  # extend the current run over a short gap
-                elif k < MAX_RUNS:
-                    runs[y, k, 0] = x
-                    runs[y, k, 1] = x + 1
-                    k += 1
-                else:
-                    runs[y, k - 1, 1] = x + 1
-                last = x
-        run_count[y] = k
-        row_surface[y] = 1 if surface else 0
+            i = base + uint64(x)
+            j = row3 + uint64(3) * uint64(x)
+            surface = sf[row + uint64(x)] != BACKGROUND
+            c0 = normalised(cf[j], inv_scale)
+            c1 = normalised(cf[j + uint64(1)], inv_scale)
+            c2 = normalised(cf[j + uint64(2)], inv_scale)
+            cbuf_a[i] = c0
+            cbuf_a[ps + i] = c1
+            cbuf_a[uint64(2) * ps + i] = c2
+            cbuf_b[i] = c0
+            cbuf_b[ps + i] = c1
+            cbuf_b[uint64(2) * ps + i] = c2
+            n0 = min(max(nf[j], -gmax), gmax)
+            n1 = min(max(nf[j + uint64(1)], -gmax), gmax)
+            n2 = min(max(nf[j + uint64(2)], -gmax), gmax)
+            gbuf[i] = n0 if surface else background
+            gbuf[ps + i] = n1 if surface else background
+            gbuf[uint64(2) * ps + i] = n2 if surface else background
+            p0 = np.float32(min(max((np.float64(pf[j]) - o0) * inv_pos, -GUIDE_MAX), GUIDE_MAX))
+            p1 = np.float32(min(max((np.float64(pf[j + uint64(1)]) - o1) * inv_pos, -GUIDE_MAX), GUIDE_MAX))
+            p2 = np.float32(min(max((np.float64(pf[j + uint64(2)]) - o2) * inv_pos, -GUIDE_MAX), GUIDE_MAX))
+            gbuf[uint64(3) * ps + i] = p0 if surface else zero
+            gbuf[uint64(4) * ps + i] = p1 if surface else zero
+            gbuf[uint64(5) * ps + i] = p2 if surface else zero
+            gbuf[uint64(6) * ps + i] = np.float32(surface)
+            surfaces += np.int64(surface)
+        row_surface[y] = np.uint8(surfaces > 0)
+        run_count[y] = row_runs(sf, row, w, runs, y)
 
 
 @njit(parallel=True, cache=True)
