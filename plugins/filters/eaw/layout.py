@@ -68,14 +68,19 @@ def padded_stride(width: int, halo: int) -> int:
 
 @njit(inline="always", cache=True)
 def finite(x):
-    """Whether float32 ``x`` is finite, from its exponent bits (exact under ``fastmath``, which
-    lets the compiler assume that no value is NaN or infinite)."""
+    """Whether float32 ``x`` is finite, from its exponent bits.
+
+    Exact on a value loaded from memory under ``fastmath``. On a value computed by arithmetic
+    carrying the ``nnan`` / ``ninf`` flags (``fastmath=True``), LLVM folds the test to true, so
+    the functions that test computed values compile without those flags
+    (:data:`SURVEY_FASTMATH`)."""
     return (float32_bits_as_int32(x) & np.int32(0x7F800000)) != np.int32(0x7F800000)
 
 
 def _select_intrinsic(predicate):
     """An intrinsic ``f(a, b) = b if predicate(b, a) else a`` on two float32 values whose compare
-    and select carry the ``fast`` flags, as Python's ``min`` (``"<"``) and ``max`` (``">"``)."""
+    and select carry the ``nnan`` and ``nsz`` flags, as Python's ``min`` (``"<"``) and ``max``
+    (``">"``) on values that are not NaN (infinities are fine)."""
 
     @intrinsic
     def select(typingctx, a, b):
@@ -84,8 +89,8 @@ def _select_intrinsic(predicate):
 
         def codegen(context, builder, signature, args):
             a, b = args
-            take = builder.fcmp_ordered(predicate, b, a, flags=("fast",))
-            return builder.select(take, b, a, flags=("fast",))
+            take = builder.fcmp_ordered(predicate, b, a, flags=("nnan", "nsz"))
+            return builder.select(take, b, a, flags=("nnan", "nsz"))
 
         return types.float32(types.float32, types.float32), codegen
 
@@ -96,6 +101,10 @@ def _select_intrinsic(predicate):
 #: select carries no fast-math flags, and LLVM then keeps a min / max reduction scalar
 fast_min = _select_intrinsic("<")
 fast_max = _select_intrinsic(">")
+#: :func:`survey`'s fast-math flags: all but ``nnan`` and ``ninf``, which would let LLVM fold
+#: :func:`finite` of the computed luminance to true (a NaN or infinite luminance was then
+#: counted in the colour scale)
+SURVEY_FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 
 @njit(inline="always", cache=True, fastmath=True)
@@ -106,7 +115,7 @@ def surface_flag(n0, n1, n2, p0, p1, p2):
             & finite(p0) & finite(p1) & finite(p2))
 
 
-@njit(parallel=True, cache=True, fastmath=True, error_model="numpy")
+@njit(parallel=True, cache=True, fastmath=SURVEY_FASTMATH, error_model="numpy")
 def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, has_variance, state,
            row_log, row_count, row_lo, row_hi):
     """Pixel classes and the per-row sums of the colour and position scales, in one pass.
