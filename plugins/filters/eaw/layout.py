@@ -143,10 +143,11 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
 
     Notes
     -----
-    Each row is two branch-free loops that LLVM vectorizes: the classes (then, only where the
-    optional channels are given, a loop each that corrects them), and the sums. The inputs are
-    read through flat views with unsigned indices, so that the channel stride is the constant 3
-    (indexing ``a[y, x, c]`` multiplies by the array's run-time shape and gives gathers).
+    Each row is one branch-free loop that LLVM vectorizes: the surface test, the class and the
+    sums of each pixel, after a loop each for the optional channels that are given (they set
+    the classes the pixels may have). The inputs are read through flat views with unsigned
+    indices, so that the channel stride is the constant 3 (indexing ``a[y, x, c]`` multiplies by
+    the array's run-time shape and gives gathers).
     """
     h, w = state.shape
     cf = color.reshape(color.size)
@@ -159,11 +160,9 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
         y = np.int64(r)
         row = uint64(y * w)
         row3 = uint64(3) * row
+        # the classes the optional channels allow (ACTIVE where none is given) ...
         for x in range(w):
-            j = row3 + uint64(3) * uint64(x)
-            surface = surface_flag(nf[j], nf[j + uint64(1)], nf[j + uint64(2)], pf[j], pf[j + uint64(1)],
-                                   pf[j + uint64(2)])
-            sf[row + uint64(x)] = np.int8(surface) * np.int8(ACTIVE)
+            sf[row + uint64(x)] = np.int8(ACTIVE)
         if has_ids:
             for x in range(w):
                 state[y, x] = state[y, x] if ids[y, x] != -1 else np.int8(BACKGROUND)
@@ -175,20 +174,24 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
                 noisy = (variance[y, x, 0] != 0.0) | (variance[y, x, 1] != 0.0) | (variance[y, x, 2] != 0.0)
                 s = state[y, x]
                 state[y, x] = s if noisy or s == BACKGROUND else np.int8(STILL)
-        # sums, branch-free (positions of background pixels may be anything: selected away)
+        # ... then, in one branch-free loop, the surface test and the sums (positions of
+        # background pixels may be anything: selected away)
         total = 0.0
         count = 0
         lo0 = lo1 = lo2 = big
         hi0 = hi1 = hi2 = -big
         for x in range(w):
             j = row3 + uint64(3) * uint64(x)
-            surface = sf[row + uint64(x)] != BACKGROUND
+            p0, p1, p2 = pf[j], pf[j + uint64(1)], pf[j + uint64(2)]
+            allowed = sf[row + uint64(x)]
+            surface = (surface_flag(nf[j], nf[j + uint64(1)], nf[j + uint64(2)], p0, p1, p2)
+                       & (allowed != BACKGROUND))
+            sf[row + uint64(x)] = allowed if surface else np.int8(BACKGROUND)
             lum = (np.float32(LUMA[0]) * cf[j] + np.float32(LUMA[1]) * cf[j + uint64(1)]
                    + np.float32(LUMA[2]) * cf[j + uint64(2)])
             ok = surface & (lum >= tiny) & finite(lum)
             total += fast_log(lum if ok else np.float32(1.0))
             count += np.int64(ok)
-            p0, p1, p2 = pf[j], pf[j + uint64(1)], pf[j + uint64(2)]
             lo0 = fast_min(lo0, p0 if surface else big)
             lo1 = fast_min(lo1, p1 if surface else big)
             lo2 = fast_min(lo2, p2 if surface else big)
