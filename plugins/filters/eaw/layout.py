@@ -303,8 +303,10 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
     Notes
     -----
     Each row is one branch-free loop writing the 13 planes, which LLVM vectorizes (flat input
-    views and unsigned indices, as in :func:`survey`), then a scan of the row's classes for its
-    runs (:func:`row_runs`).
+    views and unsigned indices, as in :func:`survey`; every value is loaded before it is
+    selected: a load under a condition becomes a masked gather). The loop counts the row's
+    active pixels: a row of them all is one run, a row of none has none; the other rows are
+    scanned for their runs (:func:`row_runs`).
     """
     h, w = state.shape
     ps = uint64(cbuf_a.shape[0] // 3)
@@ -322,10 +324,13 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
         row = uint64(y * w)
         row3 = uint64(3) * row
         surfaces = 0
+        actives = 0
         for x in range(w):
             i = base + uint64(x)
             j = row3 + uint64(3) * uint64(x)
-            surface = sf[row + uint64(x)] != BACKGROUND
+            s = sf[row + uint64(x)]
+            surface = s != BACKGROUND
+            actives += np.int64(s == ACTIVE)
             c0 = normalised(cf[j], inv_scale)
             c1 = normalised(cf[j + uint64(1)], inv_scale)
             c2 = normalised(cf[j + uint64(2)], inv_scale)
@@ -350,7 +355,14 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
             gbuf[uint64(6) * ps + i] = np.float32(surface)
             surfaces += np.int64(surface)
         row_surface[y] = np.uint8(surfaces > 0)
-        run_count[y] = row_runs(sf, row, w, runs, y)
+        if actives == w:  # the common rows need no scan
+            runs[y, 0, 0] = 0
+            runs[y, 0, 1] = w
+            run_count[y] = 1
+        elif actives == 0:
+            run_count[y] = 0
+        else:
+            run_count[y] = row_runs(sf, row, w, runs, y)
 
 
 @njit(parallel=True, cache=True)
