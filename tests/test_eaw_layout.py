@@ -250,8 +250,8 @@ def test_runs_of_designed_rows():
 
 def test_nonfinite_luminance_is_not_counted():
     """A surface pixel whose luminance is NaN or infinite is left out of the colour scale (before,
-    ``fastmath`` folded the finiteness test of the computed luminance away: a NaN made the scale
-    fall back to 1, an infinite colour added about 88.7 to the sum of logs)."""
+    ``fastmath`` folded the finiteness test of the computed luminance away: an infinite colour
+    added about 88.7 to the sum of logs, and this frame's scale was 0.98)."""
     h, w = 4, 33
     ch = hard_frame(h, w, seed=0)
     ch["normal"][:] = (0.0, 0.0, 1.0)

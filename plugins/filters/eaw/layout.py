@@ -47,7 +47,7 @@ A_N_MIN = 1e-30
 #: runs of active pixels kept per row; further runs are merged into the last one (correct, as
 #: the kernels leave every pixel that is not active unchanged, only slower)
 MAX_RUNS = 8
-#: gaps of at most this many inactive pixels are merged into the surrounding run
+#: gaps of fewer than this many inactive pixels are merged into the surrounding run
 MIN_GAP = 16
 #: floats of per-thread accumulator scratch (4 sums of 256 pixels, see :mod:`.cpu`)
 SCRATCH = 4 * 256
