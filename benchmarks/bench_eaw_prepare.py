@@ -5,9 +5,10 @@ One ``synthetic-moving`` frame (the channels ``eaw`` reads: colour, normal, posi
 surveyed and packed by the current :mod:`plugins.filters.eaw.layout` and by the one at git
 revision ``--baseline`` (the whole ``eaw`` package of that revision, extracted to a temporary
 folder and imported from there), the two taking turns round by round, each pass timed in
-process CPU time (all threads together) and wall-clock time. Before timing, the script checks
-that both give the same pixel classes, row sums, planes and runs, and prints the largest
-difference of the colour scale. The memory floor of the filter (read colour, normal, position,
+process CPU time (all threads together) and wall-clock time; also ``layout.unpack`` (the CUDA
+backend's last step, on the host). Before timing, the script checks that both give the same
+pixel classes, row sums, planes, runs and unpacked frame, and prints the largest difference of
+the colour scale. The memory floor of the filter (read colour, normal, position,
 write one frame) is timed in the same rounds.
 
 Usage::
@@ -70,6 +71,7 @@ class Preparer:
         self.params = params
         self.b = module.Buffers(frame.height, frame.width, params.halo())
         self.scales = None
+        self.out = np.empty_like(self.color)
 
     def survey(self):
         b, m = self.b, self.m
@@ -86,6 +88,11 @@ class Preparer:
         scale, origin, pos_unit = self.scales
         self.m.pack(self.color, self.normal, self.position, b.state, 1.0 / scale, origin, 1.0 / pos_unit, b.halo,
                     b.stride, b.color[0], b.color[1], b.guide, b.runs, b.run_count, b.row_surface)
+
+    def unpack(self):
+        """The CUDA backend's last step (here on the packed colour itself)."""
+        b, scale = self.b, self.scales[0]
+        self.m.unpack(self.color, b.state, b.color[1], 1.0 / scale, scale, b.halo, b.stride, self.out)
 
 
 def compare(old: Preparer, new: Preparer) -> None:
@@ -129,9 +136,13 @@ def main() -> None:
         p.survey()
         p.scale()
         p.pack()
+        p.unpack()
     compare(old, new)
+    same = np.array_equal(old.out.view(np.uint32), new.out.view(np.uint32))
+    print(f"unpack: bit-identical {'yes' if same else 'NO'}")
     active = np.mean(new.b.state == layout.ACTIVE)
     passes = {"survey@base": old.survey, "survey": new.survey, "pack@base": old.pack, "pack": new.pack,
+              "unpack@base": old.unpack, "unpack": new.unpack,
               "floor": lambda: floor_eaw(old.color, old.normal, old.position, out)}
     threads = [int(t) for t in args.threads.split(",") if t] or [get_num_threads()]
     for n in threads:
@@ -153,7 +164,7 @@ def main() -> None:
         for name in passes:
             print(f"{name:12s} {min(wall[name]):9.2f} {np.median(wall[name]):9.2f} {min(cpu[name]):9.2f} "
                   f"{np.median(cpu[name]):9.2f}")
-        for stage in ("survey", "pack"):
+        for stage in ("survey", "pack", "unpack"):
             for label, t in (("wall", wall), ("cpu", cpu)):
                 ratio = np.array(t[f"{stage}@base"]) / np.array(t[stage])
                 print(f"  {stage}@base / {stage} ({label}, per round): median {np.median(ratio):.2f}, "

@@ -265,3 +265,33 @@ def test_nonfinite_luminance_is_not_counted():
     np.testing.assert_array_equal(b.row_count, [w, w - 1, w - 1, w - 1])
     scale = layout.frame_scales(b.row_log, b.row_count, b.row_lo, b.row_hi, "logmean", "scene")[0]
     assert scale == pytest.approx(0.5, rel=1e-9)
+
+
+@pytest.mark.parametrize("shape", SHAPES)
+def test_unpack_matches_reference(shape):
+    """The CUDA backend's last step: the change of each active pixel, in units of the colour
+    scale, added to its input colour in float64; every other pixel is its input colour."""
+    h, w = shape
+    ch = hard_frame(h, w, seed=11)
+    rng = np.random.default_rng(3)
+    state = np.where(reference_classes(ch) == BACKGROUND, BACKGROUND, rng.choice([STILL, ACTIVE], (h, w)))
+    state = state.astype(np.int8)
+    b = layout.Buffers(h, w, 4)
+    filtered = rng.normal(size=b.color[0].shape).astype(F32)
+    inv_scale, scale = 1.0 / 0.37, 0.37
+    out = np.empty_like(ch["color"])
+    layout.unpack(ch["color"], state, filtered, inv_scale, scale, b.halo, b.stride, out)
+    planes, _ = reference_planes(ch, state, inv_scale, np.zeros(3), 1.0, b.halo, b.stride)
+    size = (h + 2 * b.halo) * b.stride
+
+    def interior(flat):
+        return np.moveaxis(flat.reshape(3, h + 2 * b.halo, b.stride)[:, b.halo:b.halo + h, b.halo:b.halo + w], 0, 2)
+
+    assert filtered.size == 3 * size
+    color = ch["color"].astype(np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        changed = (color + (interior(filtered).astype(np.float64) - interior(planes)) * scale).astype(F32)
+    want = np.where((state == ACTIVE)[..., None], changed, ch["color"])
+    finite = np.isfinite(want)
+    assert np.array_equal(np.isfinite(out), finite) and np.array_equal(np.isnan(out), np.isnan(want))
+    assert same_bits(out[finite], want[finite])

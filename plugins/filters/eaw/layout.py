@@ -369,21 +369,34 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
 def unpack(color, state, cbuf, inv_scale, scale, halo, stride, out):
     """``out = color + (filtered - normalised colour) * scale`` on active pixels, else ``color``.
 
-    Used by the CUDA backend (the CPU backend does this in its last pass).
+    Used by the CUDA backend (the CPU backend does this in its last pass). ``color``, ``state``
+    and ``out`` are C-contiguous; one branch-free loop per row (flat views, unsigned indices,
+    every value computed before it is selected, as in :func:`pack`).
     """
     h, w = state.shape
-    ps = cbuf.shape[0] // 3
+    ps = uint64(cbuf.shape[0] // 3)
+    cf = color.reshape(color.size)
+    sf = state.reshape(state.size)
+    of = out.reshape(out.size)
     for r in prange(h):
         y = np.int64(r)
-        base = (y + halo) * stride + halo
+        base = uint64((y + halo) * stride + halo)
+        row = uint64(y * w)
         for x in range(w):
-            for c in range(3):
-                v = color[y, x, c]
-                if state[y, x] == ACTIVE:
-                    delta = np.float64(cbuf[c * ps + base + x]) - np.float64(normalised(v, inv_scale))
-                    out[y, x, c] = np.float32(np.float64(v) + delta * scale)
-                else:
-                    out[y, x, c] = v
+            i = base + uint64(x)
+            j = uint64(3) * (row + uint64(x))
+            active = sf[row + uint64(x)] == ACTIVE
+            v0, v1, v2 = cf[j], cf[j + uint64(1)], cf[j + uint64(2)]
+            f0, f1, f2 = cbuf[i], cbuf[ps + i], cbuf[uint64(2) * ps + i]
+            d0 = np.float64(f0) - np.float64(normalised(v0, inv_scale))
+            d1 = np.float64(f1) - np.float64(normalised(v1, inv_scale))
+            d2 = np.float64(f2) - np.float64(normalised(v2, inv_scale))
+            c0 = np.float32(np.float64(v0) + d0 * scale)
+            c1 = np.float32(np.float64(v1) + d1 * scale)
+            c2 = np.float32(np.float64(v2) + d2 * scale)
+            of[j] = c0 if active else v0
+            of[j + uint64(1)] = c1 if active else v1
+            of[j + uint64(2)] = c2 if active else v2
 
 
 class Buffers:
