@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types, uint64
+from numba.extending import intrinsic
 
 from .fastexp import float32_bits_as_int32
 from .fastlog import fast_log
@@ -46,7 +47,7 @@ A_N_MIN = 1e-30
 #: runs of active pixels kept per row; further runs are merged into the last one (correct, as
 #: the kernels leave every pixel that is not active unchanged, only slower)
 MAX_RUNS = 8
-#: gaps of at most this many inactive pixels are merged into the surrounding run
+#: gaps of fewer than this many inactive pixels are merged into the surrounding run
 MIN_GAP = 16
 # Rec. 709 luminance weights
 LUMA = (0.2126, 0.7152, 0.0722)
@@ -65,12 +66,54 @@ def padded_stride(width: int, halo: int) -> int:
 
 @njit(inline="always", cache=True)
 def finite(x):
-    """Whether float32 ``x`` is finite, from its exponent bits (exact under ``fastmath``, which
-    lets the compiler assume that no value is NaN or infinite)."""
+    """Whether float32 ``x`` is finite, from its exponent bits.
+
+    Exact on a value loaded from memory under ``fastmath``. On a value computed by arithmetic
+    carrying the ``nnan`` / ``ninf`` flags (``fastmath=True``), LLVM folds the test to true, so
+    the functions that test computed values compile without those flags
+    (:data:`SURVEY_FASTMATH`)."""
     return (float32_bits_as_int32(x) & np.int32(0x7F800000)) != np.int32(0x7F800000)
 
 
-@njit(parallel=True, cache=True, fastmath=True)
+def _select_intrinsic(predicate):
+    """An intrinsic ``f(a, b) = b if predicate(b, a) else a`` on two float32 values whose compare
+    and select carry the ``nnan`` and ``nsz`` flags, as Python's ``min`` (``"<"``) and ``max``
+    (``">"``) on values that are not NaN (infinities are fine)."""
+
+    @intrinsic
+    def select(typingctx, a, b):
+        if a != types.float32 or b != types.float32:
+            return None
+
+        def codegen(context, builder, signature, args):
+            a, b = args
+            take = builder.fcmp_ordered(predicate, b, a, flags=("nnan", "nsz"))
+            return builder.select(take, b, a, flags=("nnan", "nsz"))
+
+        return types.float32(types.float32, types.float32), codegen
+
+    return select
+
+
+#: ``min`` and ``max`` of two float32 values that LLVM vectorizes as reductions: Numba's own
+#: select carries no fast-math flags, and LLVM then keeps a min / max reduction scalar
+fast_min = _select_intrinsic("<")
+fast_max = _select_intrinsic(">")
+#: :func:`survey`'s fast-math flags: all but ``nnan`` and ``ninf``, which would let LLVM fold
+#: :func:`finite` of the computed luminance to true (a NaN or infinite luminance was then
+#: counted in the colour scale)
+SURVEY_FASTMATH = {"nsz", "arcp", "contract", "afn", "reassoc"}
+
+
+@njit(inline="always", cache=True, fastmath=True)
+def surface_flag(n0, n1, n2, p0, p1, p2):
+    """Whether a pixel of normal ``(n0, n1, n2)`` and position ``(p0, p1, p2)`` (float32) is a
+    surface: the normal is finite and not zero, the position finite (branch-free)."""
+    return (((n0 != 0.0) | (n1 != 0.0) | (n2 != 0.0)) & finite(n0) & finite(n1) & finite(n2)
+            & finite(p0) & finite(p1) & finite(p2))
+
+
+@njit(parallel=True, cache=True, fastmath=SURVEY_FASTMATH, error_model="numpy")
 def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, has_variance, state,
            row_log, row_count, row_lo, row_hi):
     """Pixel classes and the per-row sums of the colour and position scales, in one pass.
@@ -81,13 +124,13 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
 
     Parameters
     ----------
-    color, normal, position : ndarray (H, W, 3) float32
+    color, normal, position : ndarray (H, W, 3) float32, C-contiguous
     ids : ndarray (H, W) int32
     depth : ndarray (H, W) float32
     variance : ndarray (H, W, 3) float32
     has_ids, has_depth, has_variance : bool
         Whether the three optional channels are real (else 1x1 stand-ins, never read).
-    state : ndarray (H, W) int8
+    state : ndarray (H, W) int8, C-contiguous
         Output: BACKGROUND, STILL or ACTIVE.
     row_log, row_count : ndarray (H,) float64, int64
         Output: per row, the sum of ``log(L)`` over surface pixels whose float32 luminance
@@ -95,18 +138,29 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
     row_lo, row_hi : ndarray (H, 3) float64
         Output: per row, the bounding box of the surface pixels' positions (``lo > hi`` when
         the row has none).
+
+    Notes
+    -----
+    Each row is one branch-free loop that LLVM vectorizes: the surface test, the class and the
+    sums of each pixel, after a loop each for the optional channels that are given (they set
+    the classes the pixels may have). The inputs are read through flat views with unsigned
+    indices, so that the channel stride is the constant 3 (indexing ``a[y, x, c]`` multiplies by
+    the array's run-time shape and gives gathers).
     """
     h, w = state.shape
+    cf = color.reshape(color.size)
+    nf = normal.reshape(normal.size)
+    pf = position.reshape(position.size)
+    sf = state.reshape(state.size)
     tiny = np.float32(np.finfo(np.float32).tiny)
     big = np.float32(np.inf)
     for r in prange(h):
         y = np.int64(r)
-        # classes, branch-free
+        row = uint64(y * w)
+        row3 = uint64(3) * row
+        # the classes the optional channels allow (ACTIVE where none is given) ...
         for x in range(w):
-            n0, n1, n2 = normal[y, x, 0], normal[y, x, 1], normal[y, x, 2]
-            surface = (((n0 != 0.0) | (n1 != 0.0) | (n2 != 0.0)) & finite(n0) & finite(n1) & finite(n2)
-                       & finite(position[y, x, 0]) & finite(position[y, x, 1]) & finite(position[y, x, 2]))
-            state[y, x] = np.int8(surface) * np.int8(ACTIVE)
+            sf[row + uint64(x)] = np.int8(ACTIVE)
         if has_ids:
             for x in range(w):
                 state[y, x] = state[y, x] if ids[y, x] != -1 else np.int8(BACKGROUND)
@@ -118,24 +172,30 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
                 noisy = (variance[y, x, 0] != 0.0) | (variance[y, x, 1] != 0.0) | (variance[y, x, 2] != 0.0)
                 s = state[y, x]
                 state[y, x] = s if noisy or s == BACKGROUND else np.int8(STILL)
-        # sums, branch-free (positions of background pixels may be anything: selected away)
+        # ... then, in one branch-free loop, the surface test and the sums (positions of
+        # background pixels may be anything: selected away)
         total = 0.0
         count = 0
         lo0 = lo1 = lo2 = big
         hi0 = hi1 = hi2 = -big
         for x in range(w):
-            surface = state[y, x] != BACKGROUND
-            lum = (np.float32(LUMA[0]) * color[y, x, 0] + np.float32(LUMA[1]) * color[y, x, 1]
-                   + np.float32(LUMA[2]) * color[y, x, 2])
+            j = row3 + uint64(3) * uint64(x)
+            p0, p1, p2 = pf[j], pf[j + uint64(1)], pf[j + uint64(2)]
+            allowed = sf[row + uint64(x)]
+            surface = (surface_flag(nf[j], nf[j + uint64(1)], nf[j + uint64(2)], p0, p1, p2)
+                       & (allowed != BACKGROUND))
+            sf[row + uint64(x)] = allowed if surface else np.int8(BACKGROUND)
+            lum = (np.float32(LUMA[0]) * cf[j] + np.float32(LUMA[1]) * cf[j + uint64(1)]
+                   + np.float32(LUMA[2]) * cf[j + uint64(2)])
             ok = surface & (lum >= tiny) & finite(lum)
             total += fast_log(lum if ok else np.float32(1.0))
             count += np.int64(ok)
-            lo0 = min(lo0, position[y, x, 0] if surface else big)
-            lo1 = min(lo1, position[y, x, 1] if surface else big)
-            lo2 = min(lo2, position[y, x, 2] if surface else big)
-            hi0 = max(hi0, position[y, x, 0] if surface else -big)
-            hi1 = max(hi1, position[y, x, 1] if surface else -big)
-            hi2 = max(hi2, position[y, x, 2] if surface else -big)
+            lo0 = fast_min(lo0, p0 if surface else big)
+            lo1 = fast_min(lo1, p1 if surface else big)
+            lo2 = fast_min(lo2, p2 if surface else big)
+            hi0 = fast_max(hi0, p0 if surface else -big)
+            hi1 = fast_max(hi1, p1 if surface else -big)
+            hi2 = fast_max(hi2, p2 if surface else -big)
         row_log[y] = total
         row_count[y] = count
         row_lo[y, 0], row_lo[y, 1], row_lo[y, 2] = lo0, lo1, lo2
@@ -181,15 +241,42 @@ def normalised(value, inv_scale):
     return np.float32(min(max(v, -COLOR_MAX), COLOR_MAX))
 
 
-@njit(parallel=True, cache=True)
+@njit(inline="always", cache=True)
+def row_runs(sf, row, w, runs, y):
+    """Write the runs of active pixels of one row (``sf[row:row + w]``) to ``runs[y]`` (see
+    :func:`pack`) and return their number.
+
+    Scans for the edges of the maximal runs of consecutive active pixels; a run that starts
+    fewer than ``MIN_GAP`` pixels after the end of the previous kept run extends it, and
+    from the ``MAX_RUNS``-th kept run on every further run extends the last one.
+    """
+    k = 0
+    x = 0
+    while x < w:
+        if sf[row + uint64(x)] != ACTIVE:
+            x += 1
+            continue
+        start = x
+        while x < w and sf[row + uint64(x)] == ACTIVE:
+            x += 1
+        if k > 0 and (start - runs[y, k - 1, 1] < MIN_GAP or k == MAX_RUNS):
+            runs[y, k - 1, 1] = x
+        else:
+            runs[y, k, 0] = start
+            runs[y, k, 1] = x
+            k += 1
+    return k
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
 def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, stride, cbuf_a, cbuf_b, gbuf,
          runs, run_count, row_surface):
     """Write the interior of the planar buffers (their halo stays zero) and the active runs.
 
     Parameters
     ----------
-    color, normal, position : ndarray (H, W, 3) float32
-    state : ndarray (H, W) int8
+    color, normal, position : ndarray (H, W, 3) float32, C-contiguous
+    state : ndarray (H, W) int8, C-contiguous
     inv_scale : float
         1 / colour scale.
     origin : ndarray (3,) float64
@@ -210,68 +297,104 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
     row_surface : ndarray (H,) uint8
         Output: 1 where the row has a surface pixel (not bool: Numba's alias analysis takes a
         bool read for a possible array view, which costs the kernels their ``noalias``).
+
+    Notes
+    -----
+    Each row is one branch-free loop writing the 13 planes, which LLVM vectorizes (flat input
+    views and unsigned indices, as in :func:`survey`; every value is loaded before it is
+    selected: a load under a condition becomes a masked gather). The loop counts the row's
+    active pixels: a row of them all is one run, a row of none has none; the other rows are
+    scanned for their runs (:func:`row_runs`).
     """
     h, w = state.shape
-    ps = cbuf_a.shape[0] // 3
+    ps = uint64(cbuf_a.shape[0] // 3)
+    cf = color.reshape(color.size)
+    nf = normal.reshape(normal.size)
+    pf = position.reshape(position.size)
+    sf = state.reshape(state.size)
+    o0, o1, o2 = origin[0], origin[1], origin[2]
+    gmax = np.float32(GUIDE_MAX)  # no float32 lies in (float32(GUIDE_MAX), GUIDE_MAX]
+    background = np.float32(BACKGROUND_NORMAL)
+    zero = np.float32(0.0)
     for r in prange(h):
         y = np.int64(r)
-        base = (y + halo) * stride + halo
-        k = 0
-        last = -MIN_GAP - 1
-        surface = False
+        base = uint64((y + halo) * stride + halo)
+        row = uint64(y * w)
+        row3 = uint64(3) * row
+        surfaces = 0
+        actives = 0
         for x in range(w):
-            i = base + x
-            s = state[y, x]
-            for c in range(3):
-                v = normalised(color[y, x, c], inv_scale)
-                cbuf_a[c * ps + i] = v
-                cbuf_b[c * ps + i] = v
-            if s != BACKGROUND:
-                for c in range(3):
-                    n = min(max(np.float64(normal[y, x, c]), -GUIDE_MAX), GUIDE_MAX)
-                    gbuf[c * ps + i] = np.float32(n)
-                    p = (np.float64(position[y, x, c]) - origin[c]) * inv_pos
-                    gbuf[(3 + c) * ps + i] = np.float32(min(max(p, -GUIDE_MAX), GUIDE_MAX))
-                gbuf[6 * ps + i] = np.float32(1.0)
-                surface = True
-            else:
-                for c in range(3):
-                    gbuf[c * ps + i] = np.float32(BACKGROUND_NORMAL)
-                for c in range(3, 7):
-                    gbuf[c * ps + i] = np.float32(0.0)
-            if s == ACTIVE:
-                if x - last <= MIN_GAP and k > 0:
-                    runs[y, k - 1, 1] = x + 1  # extend the current run over a short gap
-                elif k < MAX_RUNS:
-                    runs[y, k, 0] = x
-                    runs[y, k, 1] = x + 1
-                    k += 1
-                else:
-                    runs[y, k - 1, 1] = x + 1
-                last = x
-        run_count[y] = k
-        row_surface[y] = 1 if surface else 0
+            i = base + uint64(x)
+            j = row3 + uint64(3) * uint64(x)
+            s = sf[row + uint64(x)]
+            surface = s != BACKGROUND
+            actives += np.int64(s == ACTIVE)
+            c0 = normalised(cf[j], inv_scale)
+            c1 = normalised(cf[j + uint64(1)], inv_scale)
+            c2 = normalised(cf[j + uint64(2)], inv_scale)
+            cbuf_a[i] = c0
+            cbuf_a[ps + i] = c1
+            cbuf_a[uint64(2) * ps + i] = c2
+            cbuf_b[i] = c0
+            cbuf_b[ps + i] = c1
+            cbuf_b[uint64(2) * ps + i] = c2
+            n0 = min(max(nf[j], -gmax), gmax)
+            n1 = min(max(nf[j + uint64(1)], -gmax), gmax)
+            n2 = min(max(nf[j + uint64(2)], -gmax), gmax)
+            gbuf[i] = n0 if surface else background
+            gbuf[ps + i] = n1 if surface else background
+            gbuf[uint64(2) * ps + i] = n2 if surface else background
+            p0 = np.float32(min(max((np.float64(pf[j]) - o0) * inv_pos, -GUIDE_MAX), GUIDE_MAX))
+            p1 = np.float32(min(max((np.float64(pf[j + uint64(1)]) - o1) * inv_pos, -GUIDE_MAX), GUIDE_MAX))
+            p2 = np.float32(min(max((np.float64(pf[j + uint64(2)]) - o2) * inv_pos, -GUIDE_MAX), GUIDE_MAX))
+            gbuf[uint64(3) * ps + i] = p0 if surface else zero
+            gbuf[uint64(4) * ps + i] = p1 if surface else zero
+            gbuf[uint64(5) * ps + i] = p2 if surface else zero
+            gbuf[uint64(6) * ps + i] = np.float32(surface)
+            surfaces += np.int64(surface)
+        row_surface[y] = np.uint8(surfaces > 0)
+        if actives == w:  # the common rows need no scan
+            runs[y, 0, 0] = 0
+            runs[y, 0, 1] = w
+            run_count[y] = 1
+        elif actives == 0:
+            run_count[y] = 0
+        else:
+            run_count[y] = row_runs(sf, row, w, runs, y)
 
 
 @njit(parallel=True, cache=True)
 def unpack(color, state, cbuf, inv_scale, scale, halo, stride, out):
     """``out = color + (filtered - normalised colour) * scale`` on active pixels, else ``color``.
 
-    Used by the CUDA backend (the CPU backend does this in its last pass).
+    Used by the CUDA backend (the CPU backend does this in its last pass). ``color``, ``state``
+    and ``out`` are C-contiguous; one branch-free loop per row (flat views, unsigned indices,
+    every value computed before it is selected, as in :func:`pack`).
     """
     h, w = state.shape
-    ps = cbuf.shape[0] // 3
+    ps = uint64(cbuf.shape[0] // 3)
+    cf = color.reshape(color.size)
+    sf = state.reshape(state.size)
+    of = out.reshape(out.size)
     for r in prange(h):
         y = np.int64(r)
-        base = (y + halo) * stride + halo
+        base = uint64((y + halo) * stride + halo)
+        row = uint64(y * w)
         for x in range(w):
-            for c in range(3):
-                v = color[y, x, c]
-                if state[y, x] == ACTIVE:
-                    delta = np.float64(cbuf[c * ps + base + x]) - np.float64(normalised(v, inv_scale))
-                    out[y, x, c] = np.float32(np.float64(v) + delta * scale)
-                else:
-                    out[y, x, c] = v
+            i = base + uint64(x)
+            j = uint64(3) * (row + uint64(x))
+            active = sf[row + uint64(x)] == ACTIVE
+            v0, v1, v2 = cf[j], cf[j + uint64(1)], cf[j + uint64(2)]
+            f0, f1, f2 = cbuf[i], cbuf[ps + i], cbuf[uint64(2) * ps + i]
+            d0 = np.float64(f0) - np.float64(normalised(v0, inv_scale))
+            d1 = np.float64(f1) - np.float64(normalised(v1, inv_scale))
+            d2 = np.float64(f2) - np.float64(normalised(v2, inv_scale))
+            c0 = np.float32(np.float64(v0) + d0 * scale)
+            c1 = np.float32(np.float64(v1) + d1 * scale)
+            c2 = np.float32(np.float64(v2) + d2 * scale)
+            of[j] = c0 if active else v0
+            of[j + uint64(1)] = c1 if active else v1
+            of[j + uint64(2)] = c2 if active else v2
 
 
 class Buffers:

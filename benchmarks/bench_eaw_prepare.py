@@ -1,0 +1,181 @@
+"""The ``eaw`` filter's per-frame preparation (``layout.survey`` and ``layout.pack``) against a
+git revision's, in one process, alternating.
+
+One ``synthetic-moving`` frame (the channels ``eaw`` reads: colour, normal, position) is
+surveyed and packed by the current :mod:`plugins.filters.eaw.layout` and by the one at git
+revision ``--baseline`` (the whole ``eaw`` package of that revision, extracted to a temporary
+folder and imported from there), the two taking turns round by round, each pass timed in
+process CPU time (all threads together) and wall-clock time; also ``layout.unpack`` (the CUDA
+backend's last step, on the host). Before timing, the script checks that both give the same
+pixel classes, row sums, planes, runs and unpacked frame, and prints the largest difference of
+the colour scale. The memory floor of the filter (read colour, normal, position,
+write one frame) is timed in the same rounds.
+
+Usage::
+
+    NUMBA_NUM_THREADS=1 python benchmarks/bench_eaw_prepare.py --threads 1 --rounds 21
+    NUMBA_NUM_THREADS=2 python benchmarks/bench_eaw_prepare.py --threads 1,2 --rounds 21
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from numba import get_num_threads, njit, prange, set_num_threads
+
+from harness import load_plugins
+from plugins.filters.eaw import layout
+from plugins.filters.eaw.params import EAWParams
+
+
+@njit(parallel=True, cache=True)
+def floor_eaw(color, normal, position, out):
+    """Read every input ``eaw`` declares, write one frame (the memory floor)."""
+    h, w = color.shape[:2]
+    for y in prange(h):
+        for x in range(w):
+            for c in range(3):
+                out[y, x, c] = color[y, x, c] + normal[y, x, c] + position[y, x, c]
+
+
+def baseline_layout(ref: str):
+    """The ``layout`` module of the ``eaw`` package at git revision ``ref``."""
+    root = Path(__file__).resolve().parents[1]
+    package = Path(tempfile.mkdtemp(prefix="bench-prepare-")) / "baseline_eaw_prepare"
+    package.mkdir()
+    files = subprocess.run(["git", "ls-tree", "--name-only", ref, "plugins/filters/eaw/"], cwd=root,
+                           capture_output=True, text=True, check=True).stdout.split()
+    for path in files:
+        if path.endswith(".py"):
+            source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=root, capture_output=True, text=True,
+                                    check=True).stdout
+            (package / Path(path).name).write_text(source)
+    sys.path.insert(0, str(package.parent))
+    return importlib.import_module("baseline_eaw_prepare.layout")
+
+
+class Preparer:
+    """Survey and pack of one ``layout`` module on one frame, with buffers of its own."""
+
+    def __init__(self, module, frame, params):
+        self.m = module
+        self.color, self.normal, self.position = (np.ascontiguousarray(frame[k], np.float32)
+                                                  for k in ("color", "normal", "position"))
+        self.params = params
+        self.b = module.Buffers(frame.height, frame.width, params.halo())
+        self.scales = None
+        self.out = np.empty_like(self.color)
+
+    def survey(self):
+        b, m = self.b, self.m
+        m.survey(self.color, self.normal, self.position, m._NO_IDS, m._NO_DEPTH, m._NO_VARIANCE, False, False,
+                 False, b.state, b.row_log, b.row_count, b.row_lo, b.row_hi)
+
+    def scale(self):
+        b = self.b
+        self.scales = self.m.frame_scales(b.row_log, b.row_count, b.row_lo, b.row_hi, self.params.color_scale,
+                                          self.params.position_units)
+
+    def pack(self):
+        b = self.b
+        scale, origin, pos_unit = self.scales
+        self.m.pack(self.color, self.normal, self.position, b.state, 1.0 / scale, origin, 1.0 / pos_unit, b.halo,
+                    b.stride, b.color[0], b.color[1], b.guide, b.runs, b.run_count, b.row_surface)
+
+    def unpack(self):
+        """The CUDA backend's last step (here on the packed colour itself)."""
+        b, scale = self.b, self.scales[0]
+        self.m.unpack(self.color, b.state, b.color[1], 1.0 / scale, scale, b.halo, b.stride, self.out)
+
+
+def compare(old: Preparer, new: Preparer) -> None:
+    """Print how the two preparations differ (the buffers are compared bit for bit)."""
+    a, b = old.b, new.b
+    print(f"colour scale: {old.scales[0]!r} (baseline) {new.scales[0]!r} (now), relative difference "
+          f"{abs(new.scales[0] / old.scales[0] - 1.0):.1e}")
+    same = {name: np.array_equal(getattr(a, name), getattr(b, name))
+            for name in ("state", "row_count", "row_lo", "row_hi", "run_count", "row_surface")}
+    same["row_log"] = np.array_equal(a.row_log, b.row_log)
+    same["runs"] = all(np.array_equal(a.runs[y, :a.run_count[y]], b.runs[y, :b.run_count[y]])
+                       for y in range(a.height))
+    for name in ("color", "guide"):
+        one = getattr(a, name) if name == "guide" else np.concatenate(getattr(a, name))
+        two = getattr(b, name) if name == "guide" else np.concatenate(getattr(b, name))
+        same[name] = np.array_equal(one.view(np.uint32), two.view(np.uint32))
+    print("bit-identical: " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in same.items()))
+    if not same["row_log"]:
+        rel = np.abs(b.row_log - a.row_log) / np.maximum(np.abs(a.row_log), 1e-300)
+        print(f"  row_log: largest relative difference {rel.max():.1e}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--resolution", default="1280x720")
+    ap.add_argument("--threads", default="", help="comma-separated thread counts (default: all)")
+    ap.add_argument("--rounds", type=int, default=21)
+    ap.add_argument("--scene", default="synthetic-moving")
+    ap.add_argument("--baseline", default="main", help="git revision whose layout is timed too")
+    args = ap.parse_args()
+    w, h = (int(v) for v in args.resolution.split("x"))
+    reg = load_plugins()
+    frame = reg.renderers["synthetic"].factory().render(
+        reg.scenes[args.scene].factory(), 1, spp=1, seed=0, channels=frozenset({"color", "normal", "position"}),
+        resolution=(w, h))
+    params = EAWParams()
+    old = Preparer(baseline_layout(args.baseline), frame, params)
+    new = Preparer(layout, frame, params)
+    out = np.empty_like(old.color)
+    for p in (old, new):  # compile, warm up
+        p.survey()
+        p.scale()
+        p.pack()
+        p.unpack()
+    compare(old, new)
+    same = np.array_equal(old.out.view(np.uint32), new.out.view(np.uint32))
+    print(f"unpack: bit-identical {'yes' if same else 'NO'}")
+    active = np.mean(new.b.state == layout.ACTIVE)
+    passes = {"survey@base": old.survey, "survey": new.survey, "pack@base": old.pack, "pack": new.pack,
+              "unpack@base": old.unpack, "unpack": new.unpack,
+              "floor": lambda: floor_eaw(old.color, old.normal, old.position, out)}
+    threads = [int(t) for t in args.threads.split(",") if t] or [get_num_threads()]
+    for n in threads:
+        set_num_threads(n)
+        for f in passes.values():
+            f()
+        wall = {k: [] for k in passes}
+        cpu = {k: [] for k in passes}
+        order = list(passes)
+        for r in range(args.rounds):
+            for name in order[r % len(order):] + order[:r % len(order)]:
+                t0, c0 = time.perf_counter(), time.process_time()
+                passes[name]()
+                wall[name].append((time.perf_counter() - t0) * 1e3)
+                cpu[name].append((time.process_time() - c0) * 1e3)
+        print(f"\n{w}x{h}, {args.scene} (active {active:.1%}), {n} thread(s), {args.rounds} rounds, "
+              f"baseline {args.baseline}; ms per pass")
+        print(f"{'pass':12s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
+        for name in passes:
+            print(f"{name:12s} {min(wall[name]):9.2f} {np.median(wall[name]):9.2f} {min(cpu[name]):9.2f} "
+                  f"{np.median(cpu[name]):9.2f}")
+        for stage in ("survey", "pack", "unpack"):
+            for label, t in (("wall", wall), ("cpu", cpu)):
+                ratio = np.array(t[f"{stage}@base"]) / np.array(t[stage])
+                print(f"  {stage}@base / {stage} ({label}, per round): median {np.median(ratio):.2f}, "
+                      f"range {ratio.min():.2f}-{ratio.max():.2f}")
+        for label, t in (("wall", wall), ("cpu", cpu)):
+            ratio = ((np.array(t["survey@base"]) + np.array(t["pack@base"]))
+                     / (np.array(t["survey"]) + np.array(t["pack"])))
+            both = np.array(t["survey"]) + np.array(t["pack"])
+            print(f"  survey + pack ({label}): now median {np.median(both):.2f} ms, before / now per round "
+                  f"median {np.median(ratio):.2f}, range {ratio.min():.2f}-{ratio.max():.2f}")
+
+
+if __name__ == "__main__":
+    main()
