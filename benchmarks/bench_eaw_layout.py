@@ -6,9 +6,12 @@ pixels that have nothing to filter. Variants are interleaved round by round, so 
 of machine load hits all of them alike; the table gives min and median of wall-clock ms per
 frame and of process CPU ms (both threads together).
 
+``--per-pass`` also prints, for the default stride with skipping, the median wall-clock ms of
+each pass (hole spacing 1, 2, 4, ...; the last one also writes the output frame).
+
 Usage::
 
-    python benchmarks/bench_eaw_layout.py [--resolution 1280x720] [--rounds 7]
+    python benchmarks/bench_eaw_layout.py [--resolution 1280x720] [--rounds 7] [--per-pass]
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--resolution", default="1280x720")
     ap.add_argument("--rounds", type=int, default=7)
+    ap.add_argument("--per-pass", action="store_true", help="also time each pass of the default variant")
     args = ap.parse_args()
     w, h = (int(v) for v in args.resolution.split("x"))
     reg = load_plugins()
@@ -75,6 +79,28 @@ def main() -> None:
     for name in variants:
         print(f"{name:48s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
               f"{min(proc[name]):9.1f} {np.median(proc[name]):9.1f}")
+    if args.per_pass:
+        per_pass(prepared[next(iter(prepared))][0], coefficients, taps, color, args.rounds)
+
+
+def per_pass(buf, coefficients, taps, color, rounds: int) -> None:
+    """Print the median wall-clock ms of each à-trous pass (``cpu.atrous_pass`` timed call by call)."""
+    kernel = cpu.atrous_pass
+    times: dict[int, list] = {}
+
+    def timed(*args):
+        t0 = time.perf_counter()
+        kernel(*args)
+        times.setdefault(args[9], []).append((time.perf_counter() - t0) * 1e3)  # args[9]: the hole spacing
+
+    cpu.atrous_pass = timed
+    try:
+        for _ in range(rounds):
+            cpu.iterate(buf, coefficients, taps, color, 1.0)
+    finally:
+        cpu.atrous_pass = kernel
+    print("ms per pass (hole spacing: median): "
+          + ", ".join(f"{step}: {np.median(v):.2f}" for step, v in sorted(times.items())))
 
 
 if __name__ == "__main__":
