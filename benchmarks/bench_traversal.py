@@ -27,11 +27,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_pathtracer import SCENES, _import_copy, harness_scene
 from numba import njit
 
 from harness import load_plugins
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def kernels(module):
@@ -96,13 +95,9 @@ def main() -> None:
     from plugins.renderers.pathtracer import PathTracer, bvh, traverse
 
     registry = load_plugins()
-    folder = ROOT.parent / "shared" / "scenes" / args.scene
-    if args.scene in registry.scenes:
-        scene = registry.scenes[args.scene].factory()
-    elif folder.is_dir():
-        scene = registry.open_scene(folder)
-    else:
-        print(f"skipping {args.scene!r}: neither a registered scene nor a folder {folder}")
+    scene = harness_scene(registry, args.scene)
+    if scene is None:
+        print(f"skipping {args.scene!r}: neither a registered scene nor a folder {SCENES / args.scene}")
         return
     setup = PathTracer().setup(scene, 0, (1280, 720))
     data = setup.data
@@ -115,11 +110,6 @@ def main() -> None:
             "resident": (c(rays[2][resident]), c(rays[3][resident]), skip[resident], False)}
     versions = {"pathtracer": (traverse, bvh)}
     if args.baseline is not None:
-        import sys
-
-        sys.path.insert(0, str(ROOT / "benchmarks"))
-        from bench_pathtracer import _import_copy
-
         old = _import_copy(args.baseline.resolve() / "plugins" / "renderers" / "pathtracer", "baseline_pathtracer")
         import baseline_pathtracer.bvh as old_bvh
         import baseline_pathtracer.traverse as old_traverse

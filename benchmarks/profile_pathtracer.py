@@ -28,13 +28,11 @@ import argparse
 import statistics
 import time
 import warnings
-from pathlib import Path
 
 import numpy as np
+from bench_pathtracer import SCENES, harness_scene
 
 from harness import load_plugins
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def main() -> None:
@@ -49,15 +47,11 @@ def main() -> None:
     from plugins.renderers.pathtracer.pixels import PixelState
 
     registry = load_plugins()
-    folder = ROOT.parent / "shared" / "scenes" / args.scene
-    if args.scene in registry.scenes:
-        scene = registry.scenes[args.scene].factory()
-    elif folder.is_dir():
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            scene = registry.open_scene(folder)
-    else:
-        print(f"skipping {args.scene!r}: neither a registered scene nor a folder {folder}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scene = harness_scene(registry, args.scene)
+    if scene is None:
+        print(f"skipping {args.scene!r}: neither a registered scene nor a folder {SCENES / args.scene}")
         return
     size = (args.width, args.height)
     n = args.width * args.height
