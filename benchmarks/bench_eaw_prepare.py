@@ -21,44 +21,20 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import subprocess
-import sys
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
-from numba import get_num_threads, njit, prange, set_num_threads
+from bench_eaw_svgf import baseline_package, floor_eaw
+from numba import get_num_threads, set_num_threads
 
 from harness import load_plugins
 from plugins.filters.eaw import layout
 from plugins.filters.eaw.params import EAWParams
 
 
-@njit(parallel=True, cache=True)
-def floor_eaw(color, normal, position, out):
-    """Read every input ``eaw`` declares, write one frame (the memory floor)."""
-    h, w = color.shape[:2]
-    for y in prange(h):
-        for x in range(w):
-            for c in range(3):
-                out[y, x, c] = color[y, x, c] + normal[y, x, c] + position[y, x, c]
-
-
 def baseline_layout(ref: str):
     """The ``layout`` module of the ``eaw`` package at git revision ``ref``."""
-    root = Path(__file__).resolve().parents[1]
-    package = Path(tempfile.mkdtemp(prefix="bench-prepare-")) / "baseline_eaw_prepare"
-    package.mkdir()
-    files = subprocess.run(["git", "ls-tree", "--name-only", ref, "plugins/filters/eaw/"], cwd=root,
-                           capture_output=True, text=True, check=True).stdout.split()
-    for path in files:
-        if path.endswith(".py"):
-            source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=root, capture_output=True, text=True,
-                                    check=True).stdout
-            (package / Path(path).name).write_text(source)
-    sys.path.insert(0, str(package.parent))
-    return importlib.import_module("baseline_eaw_prepare.layout")
+    return importlib.import_module(baseline_package(ref, "eaw") + ".layout")
 
 
 class Preparer:

@@ -149,28 +149,31 @@ def set_threads(n: int, filters: dict) -> None:
 BASELINE_PLUGINS = ("eaw", "svgf", "opencv_jbf", "oidn")
 
 
-def baseline_factories(ref: str, names) -> dict:
-    """``{"NAME@REF": factory}`` for the selected plugins of :data:`BASELINE_PLUGINS` as they
-    were at git revision ``ref`` (extracted to a temporary folder, imported from there)."""
+def baseline_package(ref: str, name: str) -> str:
+    """Extract the filter plugin ``name`` as it was at git revision ``ref`` into a temporary
+    folder put on ``sys.path``, as the package ``baseline_NAME``; return that package's name."""
     root = Path(__file__).resolve().parents[1]
     folder = Path(tempfile.mkdtemp(prefix="bench-baseline-"))
+    package = folder / f"baseline_{name}"
+    package.mkdir()
+    files = subprocess.run(["git", "ls-tree", "--name-only", ref, f"plugins/filters/{name}/"], cwd=root,
+                           capture_output=True, text=True, check=True).stdout.split()
+    for path in files:
+        if path.endswith(".py"):
+            source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=root, capture_output=True, text=True,
+                                    check=True).stdout
+            (package / Path(path).name).write_text(source)
+    sys.path.insert(0, str(folder))
+    return package.name
+
+
+def baseline_factories(ref: str, names) -> dict:
+    """``{"NAME@REF": factory}`` for the selected plugins of :data:`BASELINE_PLUGINS` as they
+    were at git revision ``ref`` (:func:`baseline_package`)."""
     factories = {}
     for name in BASELINE_PLUGINS:
-        if name not in names:
-            continue
-        package = folder / f"baseline_{name}"
-        package.mkdir()
-        files = subprocess.run(["git", "ls-tree", "--name-only", ref, f"plugins/filters/{name}/"], cwd=root,
-                               capture_output=True, text=True, check=True).stdout.split()
-        for path in files:
-            if path.endswith(".py"):
-                source = subprocess.run(["git", "show", f"{ref}:{path}"], cwd=root, capture_output=True, text=True,
-                                        check=True).stdout
-                (package / Path(path).name).write_text(source)
-    sys.path.insert(0, str(folder))
-    for name in BASELINE_PLUGINS:
         if name in names:
-            spec = importlib.import_module(f"baseline_{name}").register_filters()[0]
+            spec = importlib.import_module(baseline_package(ref, name)).register_filters()[0]
             factories[f"{name}@{ref}"] = spec.factory
     return factories
 
