@@ -28,7 +28,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange, uint64
 
 from .fastexp import LOG2E, exp2_minus
-from .layout import A_N_MIN, ACTIVE, MAX_RUNS, Buffers, normalised, prepare
+from .layout import A_N_MIN, ACTIVE, MAX_RUNS, Buffers, prepare, unpack_row
 
 #: the forward half of the 5x5 taps as (dx, dy) in hole-spacing units: dy > 0, or dy = 0 and
 #: dx > 0 (row-major kernel indices 13 to 24)
@@ -142,29 +142,6 @@ def _accumulate(sp, dp, ps, row, x0, n, state, y, ring, fw, bw, offs, centre):
         dp[ic] = c0 + s0 * inv
         dp[ps + ic] = c1 + s1 * inv
         dp[ps + ps + ic] = c2 + s2 * inv
-
-
-@njit(cache=True, fastmath=True, inline="always")
-def _write_output(dp, ps, row, state, y, color, out, n, inv_scale, scale):
-    """Row ``y`` of the output (flat ``(H, W, 3)`` arrays ``color`` and ``out``, ``n`` pixels
-    wide): ``color + (filtered - normalised colour) * scale`` on active pixels, ``color`` on
-    the others, branch-free."""
-    base = uint64(y) * n * uint64(3)
-    p1 = ps + row
-    p2 = p1 + ps
-    for x in range(n):
-        active = state[y, x] == ACTIVE
-        i = base + x * uint64(3)
-        out[i] = _changed(color[i], dp[row + x], active, inv_scale, scale)
-        out[i + uint64(1)] = _changed(color[i + uint64(1)], dp[p1 + x], active, inv_scale, scale)
-        out[i + uint64(2)] = _changed(color[i + uint64(2)], dp[p2 + x], active, inv_scale, scale)
-
-
-@njit(cache=True, fastmath=True, inline="always")
-def _changed(v, f, active, inv_scale, scale):
-    """``v + (f - normalised v) * scale`` if ``active``, else ``v``."""
-    o = np.float32(np.float64(v) + (np.float64(f) - np.float64(normalised(v, inv_scale))) * scale)
-    return o if active else v
 
 
 @njit(cache=True, inline="always")
@@ -285,7 +262,7 @@ def atrous_pass(src, dst, gbuf, state, runs, run_count, row_surface, halo, strid
                 _accumulate(src, dst, ps, row, uint64(xa), uint64(runs[y, r, 1] - xa), state, y, ring, fw, bw,
                             offs, centre)
             if final:
-                _write_output(dst, ps, row, state, y, color, out, wu, inv_scale, scale)
+                unpack_row(dst, ps, row, state, y, color, out, wu, inv_scale, scale)
 
 
 def row_order(height: int, step: int) -> np.ndarray:

@@ -363,38 +363,46 @@ def pack(color, normal, position, state, inv_scale, origin, inv_pos, halo, strid
             run_count[y] = row_runs(sf, row, w, runs, y)
 
 
+@njit(inline="always", cache=True)
+def unpack_row(cbuf, ps, base, state, y, color, out, w, inv_scale, scale):
+    """Row ``y`` of the output from the colour planes ``cbuf`` (``ps`` floats each; the row's
+    first pixel at flat index ``base``): ``color + (filtered - normalised colour) * scale`` on
+    active pixels, ``color`` on the others. ``color`` and ``out`` are the flat ``(H, W, 3)``
+    arrays, ``w`` (uint64) the row's width. One branch-free loop (unsigned indices, every value
+    computed before it is selected), which LLVM vectorizes; shared by :func:`unpack` and the CPU
+    backend's last pass."""
+    row3 = uint64(y) * w * uint64(3)
+    p1 = ps + base
+    p2 = p1 + ps
+    for x in range(w):
+        active = state[y, x] == ACTIVE
+        j = row3 + x * uint64(3)
+        out[j] = _unpacked(color[j], cbuf[base + x], active, inv_scale, scale)
+        out[j + uint64(1)] = _unpacked(color[j + uint64(1)], cbuf[p1 + x], active, inv_scale, scale)
+        out[j + uint64(2)] = _unpacked(color[j + uint64(2)], cbuf[p2 + x], active, inv_scale, scale)
+
+
+@njit(inline="always", cache=True)
+def _unpacked(v, f, active, inv_scale, scale):
+    """``v + (f - normalised v) * scale`` if ``active``, else ``v``."""
+    changed = np.float32(np.float64(v) + (np.float64(f) - np.float64(normalised(v, inv_scale))) * scale)
+    return changed if active else v
+
+
 @njit(parallel=True, cache=True)
 def unpack(color, state, cbuf, inv_scale, scale, halo, stride, out):
     """``out = color + (filtered - normalised colour) * scale`` on active pixels, else ``color``.
 
-    Used by the CUDA backend (the CPU backend does this in its last pass). ``color``, ``state``
-    and ``out`` are C-contiguous; one branch-free loop per row (flat views, unsigned indices,
-    every value computed before it is selected, as in :func:`pack`).
+    Used by the CUDA backend (the CPU backend does this in its last pass, with the same
+    :func:`unpack_row`). ``color`` and ``out`` are C-contiguous.
     """
     h, w = state.shape
     ps = uint64(cbuf.shape[0] // 3)
     cf = color.reshape(color.size)
-    sf = state.reshape(state.size)
     of = out.reshape(out.size)
     for r in prange(h):
         y = np.int64(r)
-        base = uint64((y + halo) * stride + halo)
-        row = uint64(y * w)
-        for x in range(w):
-            i = base + uint64(x)
-            j = uint64(3) * (row + uint64(x))
-            active = sf[row + uint64(x)] == ACTIVE
-            v0, v1, v2 = cf[j], cf[j + uint64(1)], cf[j + uint64(2)]
-            f0, f1, f2 = cbuf[i], cbuf[ps + i], cbuf[uint64(2) * ps + i]
-            d0 = np.float64(f0) - np.float64(normalised(v0, inv_scale))
-            d1 = np.float64(f1) - np.float64(normalised(v1, inv_scale))
-            d2 = np.float64(f2) - np.float64(normalised(v2, inv_scale))
-            c0 = np.float32(np.float64(v0) + d0 * scale)
-            c1 = np.float32(np.float64(v1) + d1 * scale)
-            c2 = np.float32(np.float64(v2) + d2 * scale)
-            of[j] = c0 if active else v0
-            of[j + uint64(1)] = c1 if active else v1
-            of[j + uint64(2)] = c2 if active else v2
+        unpack_row(cbuf, ps, uint64((y + halo) * stride + halo), state, y, cf, of, uint64(w), inv_scale, scale)
 
 
 class Buffers:
