@@ -161,13 +161,16 @@ def _tap_rows(base, pitch):
     return (base, b1, b2, b3, b4, b5, b6, b7, b8, b9, b10, b11)
 
 
-@njit(cache=True, inline="always")
-def _zero_rows(ring, fw, n):
-    """Weight 0 for the ``n`` pixels of one ring row of each tap (a row above the image or
-    without a surface)."""
-    for o in range(12):
-        for j in range(n):
-            ring[fw[o] + j] = np.float32(0.0)
+@njit(cache=True, fastmath=True, inline="always")
+def _slot_weights(cp, gp, ps, y, halo, stride, row_surface, n, ring, fw, offs, ek, b_c, b_n, b_x):
+    """The forward pair weights of row ``y`` into the ring rows ``fw`` (:func:`_row_weights`);
+    weight 0 for a row above the image (``y < 0``) or without a surface."""
+    if y >= 0 and row_surface[y] != 0:
+        _row_weights(cp, gp, ps, uint64((y + halo) * stride + halo), n, ring, fw, offs, ek, b_c, b_n, b_x)
+    else:
+        for o in range(12):
+            for j in range(n):
+                ring[fw[o] + j] = np.float32(0.0)
 
 
 @njit(parallel=True, cache=True, fastmath=True)
@@ -238,19 +241,12 @@ def atrous_pass(src, dst, gbuf, state, runs, run_count, row_surface, halo, strid
             if i == starts[t] or k == 0:
                 # the two rows of the class above y: computed, or weight 0 above the image
                 for back in range(2, 0, -1):
-                    fw = _tap_rows(r0 + uint64(((k - back) % SLOTS) * stride), pitch)
-                    yb = y - back * step
-                    if yb >= 0 and row_surface[yb] != 0:
-                        _row_weights(src, gbuf, ps, uint64((yb + halo) * stride + halo), wu, ring, fw, offs, ek,
-                                     b_c, b_n, b_x)
-                    else:
-                        _zero_rows(ring, fw, wu)
-            row = uint64((y + halo) * stride + halo)
+                    _slot_weights(src, gbuf, ps, y - back * step, halo, stride, row_surface, wu, ring,
+                                  _tap_rows(r0 + uint64(((k - back) % SLOTS) * stride), pitch), offs, ek, b_c, b_n,
+                                  b_x)
             fw = _tap_rows(r0 + uint64((k % SLOTS) * stride), pitch)  # this row's slot
-            if row_surface[y] != 0:
-                _row_weights(src, gbuf, ps, row, wu, ring, fw, offs, ek, b_c, b_n, b_x)
-            else:
-                _zero_rows(ring, fw, wu)
+            _slot_weights(src, gbuf, ps, y, halo, stride, row_surface, wu, ring, fw, offs, ek, b_c, b_n, b_x)
+            row = uint64((y + halo) * stride + halo)
             # backward tap o of pixel x: the forward weight of pixel x - dx in row y - dy
             f1 = _tap_rows(r0 + uint64(((k - 1) % SLOTS) * stride), pitch)  # the slot of row y - step
             f2 = _tap_rows(r0 + uint64(((k - 2) % SLOTS) * stride), pitch)  # of row y - 2 step
@@ -368,7 +364,8 @@ def iterate(buffers: Buffers, coefficients, taps, color, scale: float):
     ring = b.thread_ring(parts * 12 * SLOTS)
     out = np.empty_like(color)
     src, dst = b.color
-    exponents = (-np.log2(taps[13:].astype(np.float64))).astype(np.float32)  # the forward half's taps
+    forward = np.array([taps[(dy + 2) * 5 + dx + 2] for dx, dy in FORWARD], np.float64)
+    exponents = (-np.log2(forward)).astype(np.float32)
     last = coefficients.shape[0] - 1
     for i in range(last + 1):
         a_c, a_n, a_x = (np.float64(v) for v in coefficients[i])
