@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from collections import defaultdict
@@ -11,10 +12,18 @@ import pandas as pd
 
 from harness.bench import DEFAULT_PEERS, bench_filters
 from harness.cache import Cache
+from harness.cli.checks import (
+    check_rank_by,
+    check_run_options,
+    check_scheduler,
+    check_work,
+    markdown_file,
+)
 from harness.cli.stress import run_stress_command, show_stress
+from harness.estimate import plan_work, reference_work
 from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
-from harness.lock import FolderLock, check_out_dir
+from harness.lock import output_folder
 from harness.manifest import read_manifest
 from harness.pareto import (
     DEFAULT_BUDGETS,
@@ -60,7 +69,8 @@ def _grid(items) -> dict:
 
 
 def _cache(args) -> Cache:
-    return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False))
+    """The render cache of ``--cache-dir``/``--no-cache``, checked usable before any work."""
+    return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False)).check()
 
 
 def _cluster_options(args) -> dict:
@@ -71,6 +81,9 @@ def _cluster_options(args) -> dict:
         return {}
     if args.scheduler and args.workers:
         raise ValueError("--workers sizes a local cluster; with --scheduler the cluster's own workers run")
+    address = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if address:
+        check_scheduler(address)
     return {"scheduler": args.scheduler, "workers": args.workers}
 
 
@@ -95,8 +108,9 @@ def _progress(args) -> bool:
 def cmd_run(registry, args) -> int:
     """Plan, run, store and summarise a benchmark."""
     tasks = list(TASKS) if args.task == "all" else [args.task]
+    check_run_options(registry, args)
     _cluster_options(args)
-    with FolderLock(check_out_dir(args.out)):
+    with output_folder(args.out):
         return _run(registry, args, tasks)
 
 
@@ -125,6 +139,7 @@ def _run(registry, args, tasks) -> int:
         timing_resolutions=profile.timing, timing_scene=profile.timing_scene, grid=_grid(args.grid),
     )
     plan.settings["profile"] = {**profile.as_dict(), "name": args.profile}
+    check_work(plan_work(plan, store, copies=1 if args.executor == "inline" else 3), store, args.max_hours, "run")
     print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
           f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
     with _executor(registry, args) as executor:
@@ -190,6 +205,7 @@ def _print_time_against_error(df: pd.DataFrame, registry, args, render_cost) -> 
 def cmd_report(registry, args) -> int:
     """Write the static HTML report of a stored run."""
     started = time.perf_counter()
+    check_rank_by(read_results(args.dir), args.rank_by)
     index = write_report(args.dir, registry, out=args.out, metrics=args.plot_metrics,
                          budgets=args.budget or DEFAULT_BUDGETS, rank_by=args.rank_by)
     print(f"report written to {index} in {time.perf_counter() - started:.1f} s")
@@ -244,9 +260,12 @@ def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
 
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
+    if args.markdown is not None:
+        markdown_file(args.markdown, args.dir)
     if (read_manifest(args.dir) or {}).get("kind") == "stress":
         return show_stress(args)
     df = read_results(args.dir)
+    check_rank_by(df, args.rank_by)
     if args.all:
         print(format_table(df))
     else:
@@ -323,6 +342,7 @@ def cmd_render(registry, args) -> int:
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
     work = [_what_to_render(registry, spec, args, profile) for spec in specs]
     target = profile.reference_target
+    check_work(reference_work(store, work, target or 0.0), store, args.max_hours, "render")
     if args.executor == "dask":
         return _render_on_cluster(registry, args, store, work, target)
     for spec, rname, spp, frames in work:
@@ -424,8 +444,10 @@ def cmd_bench(registry, args) -> int:
     """Time filters per frame at each resolution and thread count, with peers and floors on the same frame."""
     from harness.bench_markdown import bench_markdown, environment_line
 
+    if args.markdown is not None:
+        markdown_file(args.markdown)
     peers = args.peers if args.peers is not None else [p for p in DEFAULT_PEERS if p in registry.filters]
-    store = RenderStore(registry, Cache(args.cache_dir))
+    store = RenderStore(registry, _cache(args))
 
     def say(line: str) -> None:
         if not args.quiet:
