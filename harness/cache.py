@@ -146,23 +146,29 @@ class Cache:
 
     def check(self) -> Cache:
         """The cache, checked usable before any work: a one-line ``ValueError`` when its folder is a
-        file or cannot be written (a folder that does not exist yet is not made here)."""
+        file or cannot be written (a file is made and removed there; folders made for the check are
+        removed again)."""
         if not self.enabled:
             return self
         root = self.root
-        existing = next((p for p in (root, *root.absolute().parents) if p.exists()), None)
-        if existing is not None and not existing.is_dir():
-            raise ValueError(f"cache folder {root}: {existing} is a file, not a folder (--cache-dir or ${CACHE_ENV})")
+        made = [p for p in (root, *root.absolute().parents) if not p.exists()]
+        blocker = next((p for p in (root, *root.absolute().parents) if p.exists()), None)
+        if blocker is not None and not blocker.is_dir():
+            raise ValueError(f"cache folder {root}: {blocker} is a file, not a folder (--cache-dir or ${CACHE_ENV})")
         try:
-            if existing == root:
-                fd, probe = tempfile.mkstemp(prefix=".write-test.", suffix=TEMP_SUFFIX, dir=root)
-                os.close(fd)
-                os.unlink(probe)
-            elif existing is None or not os.access(existing, os.W_OK | os.X_OK):
-                raise PermissionError(13, "Permission denied")
+            root.mkdir(parents=True, exist_ok=True)
+            fd, probe = tempfile.mkstemp(prefix=".write-test.", suffix=TEMP_SUFFIX, dir=root)
+            os.close(fd)
+            os.unlink(probe)
         except OSError as exc:
             raise ValueError(f"cache folder {root} is not writable ({exc.strerror or exc}); choose another with "
                              "--cache-dir, or run with --no-cache") from None
+        finally:
+            for folder in made:  # deepest first
+                try:
+                    folder.rmdir()
+                except OSError:
+                    break
         return self
 
     def path(self, kind: str, key: str) -> Path:

@@ -43,7 +43,7 @@ LONG_S = 600.0
 #: environment variable that lowers the memory limit (bytes, or a number with K, M, G or T)
 MEMORY_ENV = "DENOISE_HARNESS_MEMORY_LIMIT"
 #: the side of the square image a renderer's rate is measured on, and the spp of the two timed calls
-RATE_SIDE = 64
+RATE_SIDE = 128
 RATE_SPP = (1, 9)
 
 
@@ -271,11 +271,12 @@ def measure_rate(store, group) -> float | None:
     return pixels * RATE_SPP[1] / high if high > 0 else None
 
 
-def estimated_seconds(work: Work, store) -> tuple[float | None, str]:
+def estimated_seconds(work: Work, store, say=None) -> tuple[float | None, str]:
     """The work's time on this machine (None when it is short or unknown) and one line saying so.
 
     Rates are measured (:func:`measure_rate`) only when the work would take over
-    :data:`LONG_S` at :data:`FAST_RATE`.
+    :data:`LONG_S` at :data:`FAST_RATE`; ``say`` (a callable) is told before each measurement
+    (the renderer's first call may compile it).
     """
     if work.total / FAST_RATE <= LONG_S:
         return None, ""
@@ -283,6 +284,9 @@ def estimated_seconds(work: Work, store) -> tuple[float | None, str]:
     for renderer, samples in sorted(work.samples.items()):
         if not samples:
             continue
+        if say is not None:
+            say(f"measuring the speed of renderer {renderer!r} for the estimate of a long run (its first call "
+                "compiles it where needed)")
         rate = measure_rate(store, work.groups[renderer])
         if rate is None:
             unknown.append(renderer)

@@ -87,7 +87,8 @@ def check_work(work, store, max_hours: float | None, command: str) -> None:
     from harness.estimate import check_memory, estimated_seconds
 
     check_memory(work)
-    seconds, line = estimated_seconds(work, store)
+    seconds, line = estimated_seconds(
+        work, store, say=lambda text: print(f"denoise-bench {command}: {text}", file=sys.stderr, flush=True))
     if seconds is not None and max_hours is not None and seconds > max_hours * 3600:
         raise ValueError(f"{line}; more than --max-hours {max_hours:g}")
     if line:

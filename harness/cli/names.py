@@ -87,21 +87,19 @@ def write_index(registry, digest: str | None) -> None:
     """Record what each entry point registered in this full load (nothing where it cannot be written)."""
     if digest is None:
         return
+    eps = importlib_metadata.entry_points(group=ENTRY_POINT_GROUP)
     by_value = {}
-    for ep in importlib_metadata.entry_points(group=ENTRY_POINT_GROUP):
+    for ep in eps:
         by_value.setdefault(ep.value, ep.name)
-    entries: dict = {}
+    entries: dict = {ep.name: {} for ep in eps}  # an entry point that registered nothing: known, empty
     for record in registry.records:
-        if record.kind == "module":
-            # broken: it registers nothing; disabled: its names are not known from this load
-            entries.setdefault(record.name, None if record.status == "disabled" else {})
+        if record.kind == "module":  # broken: registers nothing; disabled: its names are unknown from this load
+            if record.status == "disabled":
+                entries[record.name] = None
             continue
         ep_name = by_value.get(record.entry_point)
-        if ep_name is None:
-            continue
-        names = entries.setdefault(ep_name, {}) or {}
-        names.setdefault(record.kind, []).append(record.name)
-        entries[ep_name] = names
+        if ep_name is not None and entries.get(ep_name) is not None:
+            entries[ep_name].setdefault(record.kind, []).append(record.name)
     old = _read(digest)
     for ep_name, names in (old or {}).items():
         if entries.get(ep_name) is None and names is not None:
