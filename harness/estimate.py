@@ -44,7 +44,7 @@ LONG_S = 600.0
 MEMORY_ENV = "DENOISE_HARNESS_MEMORY_LIMIT"
 #: the side of the square image a renderer's rate is measured on, and the spp of the two timed calls
 RATE_SIDE = 128
-RATE_SPP = (1, 9)
+RATE_SPP = (1, 17)
 
 
 @dataclass
@@ -248,8 +248,10 @@ def measure_rate(store, group) -> float | None:
     """Samples per second of the group's renderer on this machine, or None where it cannot be measured.
 
     The renderer renders frame 0 of the group's scene at :data:`RATE_SIDE` pixels square with
-    the group's channels: once (compilation), then at each spp of :data:`RATE_SPP`; the rate is
-    the extra samples over the extra time, which leaves out the per-frame cost.
+    the group's channels: once (compilation), then twice at each spp of :data:`RATE_SPP` (the
+    faster of the two kept); the rate is the extra samples over the extra time, which leaves out
+    the per-frame cost, unless the two times are too close to tell (a loaded machine), where it is
+    the samples of the larger call over its time.
     """
     try:
         scene = store.scene(group.scene)
@@ -262,21 +264,22 @@ def measure_rate(store, group) -> float | None:
             return time.perf_counter() - start
 
         render(RATE_SPP[0])
-        low, high = render(RATE_SPP[0]), render(RATE_SPP[1])
+        low = min(render(RATE_SPP[0]), render(RATE_SPP[0]))
+        high = min(render(RATE_SPP[1]), render(RATE_SPP[1]))
     except Exception:  # a renderer that serves one size only (captures) has no rate here
         return None
     pixels = RATE_SIDE * RATE_SIDE
-    if high > low:
+    if high > 1.5 * low:
         return pixels * (RATE_SPP[1] - RATE_SPP[0]) / (high - low)
     return pixels * RATE_SPP[1] / high if high > 0 else None
 
 
-def estimated_seconds(work: Work, store, say=None) -> tuple[float | None, str]:
+def estimated_seconds(work: Work, store) -> tuple[float | None, str]:
     """The work's time on this machine (None when it is short or unknown) and one line saying so.
 
     Rates are measured (:func:`measure_rate`) only when the work would take over
-    :data:`LONG_S` at :data:`FAST_RATE`; ``say`` (a callable) is told before each measurement
-    (the renderer's first call may compile it).
+    :data:`LONG_S` at :data:`FAST_RATE` (a renderer's first call compiles it where its compiled
+    code is not cached yet: work the run needs anyway).
     """
     if work.total / FAST_RATE <= LONG_S:
         return None, ""
@@ -284,9 +287,6 @@ def estimated_seconds(work: Work, store, say=None) -> tuple[float | None, str]:
     for renderer, samples in sorted(work.samples.items()):
         if not samples:
             continue
-        if say is not None:
-            say(f"measuring the speed of renderer {renderer!r} for the estimate of a long run (its first call "
-                "compiles it where needed)")
         rate = measure_rate(store, work.groups[renderer])
         if rate is None:
             unknown.append(renderer)

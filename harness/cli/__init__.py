@@ -26,6 +26,7 @@ def _warning_line(message, category, filename, lineno, file=None, line=None) -> 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``denoise-bench``; returns the exit status."""
     from harness.cli import names
+    from harness.cli.checks import check_scheduler_option
     from harness.cli.parser import build_parser
 
     args = build_parser().parse_args(argv)
@@ -35,6 +36,11 @@ def main(argv: list[str] | None = None) -> int:
     message = names.refusal(args, known) if known is not None else None
     if message:  # answered from the plugin name index, before any plugin is imported
         print(f"denoise-bench {args.command}: {message}", file=sys.stderr)
+        return 2
+    try:
+        check_scheduler_option(args)
+    except ValueError as exc:
+        print(f"denoise-bench {args.command}: {exc}", file=sys.stderr)
         return 2
     from harness.cli import commands
 

@@ -75,6 +75,18 @@ def check_scheduler(address: str, timeout: float = SCHEDULER_PROBE_S) -> None:
     raise ValueError(f"--scheduler {address}: cannot reach the dask scheduler: {why}")
 
 
+def check_scheduler_option(args) -> None:
+    """With ``--executor dask`` and a scheduler address (``--scheduler`` or ``$DASK_SCHEDULER_ADDRESS``),
+    the scheduler must accept connections (before the plugins are loaded)."""
+    import os
+
+    if getattr(args, "executor", None) != "dask":
+        return
+    address = getattr(args, "scheduler", None) or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if address:
+        check_scheduler(address)
+
+
 def check_work(work, store, max_hours: float | None, command: str) -> None:
     """Refuse work that cannot fit in memory, or that takes longer than ``max_hours``; announce long work.
 
@@ -87,8 +99,7 @@ def check_work(work, store, max_hours: float | None, command: str) -> None:
     from harness.estimate import check_memory, estimated_seconds
 
     check_memory(work)
-    seconds, line = estimated_seconds(
-        work, store, say=lambda text: print(f"denoise-bench {command}: {text}", file=sys.stderr, flush=True))
+    seconds, line = estimated_seconds(work, store)
     if seconds is not None and max_hours is not None and seconds > max_hours * 3600:
         raise ValueError(f"{line}; more than --max-hours {max_hours:g}")
     if line:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from collections import defaultdict
@@ -15,7 +14,6 @@ from harness.cache import Cache
 from harness.cli.checks import (
     check_rank_by,
     check_run_options,
-    check_scheduler,
     check_work,
     markdown_file,
 )
@@ -81,9 +79,6 @@ def _cluster_options(args) -> dict:
         return {}
     if args.scheduler and args.workers:
         raise ValueError("--workers sizes a local cluster; with --scheduler the cluster's own workers run")
-    address = args.scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
-    if address:
-        check_scheduler(address)
     return {"scheduler": args.scheduler, "workers": args.workers}
 
 
