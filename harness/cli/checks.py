@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import socket
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -54,8 +57,6 @@ def check_scheduler(address: str, timeout: float = SCHEDULER_PROBE_S) -> None:
 
     Other protocols (``inproc://``, ``ucx://``, ...) are left to Dask.
     """
-    import socket
-
     scheme, _, rest = address.rpartition("://")
     if scheme not in ("", "tcp", "tls"):
         return
@@ -78,8 +79,6 @@ def check_scheduler(address: str, timeout: float = SCHEDULER_PROBE_S) -> None:
 def check_scheduler_option(args) -> None:
     """With ``--executor dask`` and a scheduler address (``--scheduler`` or ``$DASK_SCHEDULER_ADDRESS``),
     the scheduler must accept connections (before the plugins are loaded)."""
-    import os
-
     if getattr(args, "executor", None) != "dask":
         return
     address = getattr(args, "scheduler", None) or os.environ.get("DASK_SCHEDULER_ADDRESS")
@@ -94,8 +93,6 @@ def check_work(work, store, max_hours: float | None, command: str) -> None:
     :data:`harness.estimate.LONG_S`; a ``ValueError`` (one line) naming the estimate and the limit
     otherwise.
     """
-    import sys
-
     from harness.estimate import check_memory, estimated_seconds
 
     check_memory(work)

@@ -7,7 +7,8 @@ no progress for ``timeout`` seconds is a hang (the worker is killed), and a work
 outcome naming what happened. A new worker is started for the next task.
 
 The worker runs the parent's code: it starts isolated (``python -I``: neither the current
-directory nor ``PYTHON*`` variables shape its import path) with the parent's ``sys.path``, and
+directory nor ``PYTHON*`` variables shape its import path) with the parent's ``sys.path`` (in
+the parent's current directory, so relative entries mean the same), and
 reports where it imported ``harness`` from and the source hash of each plugin it loaded; a
 worker that runs other code than the parent (whose manifest records the parent's) is an error,
 never a silent substitute. It runs in its own process group, which is ended with it, so child
@@ -88,7 +89,7 @@ class LocalExecutor(Executor):
         read_parent, write_child = os.pipe()
         env = dict(os.environ)
         env["DENOISE_HARNESS_PARENT"] = str(os.getpid())
-        path = json.dumps([os.path.abspath(p) if p else os.getcwd() for p in sys.path])
+        path = json.dumps([p for p in sys.path if isinstance(p, str)])  # the worker starts in this cwd
         try:
             self._proc = subprocess.Popen(
                 [sys.executable, "-I", "-c", _BOOTSTRAP, path, str(read_child), str(write_child)],
