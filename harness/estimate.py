@@ -27,9 +27,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.buffers import CHANNELS
+from harness.real_resolutions import TIMING_FRAMES
 from harness.references import batch_size
 from harness.renders import REFERENCE_SEED
-from harness.timing import TIMING_FRAMES
 
 #: bytes per pixel of a reference held by a run: the image and its variance of the mean, float32 RGB
 REFERENCE_BYTES_PER_PIXEL = 24
@@ -301,6 +301,37 @@ def estimated_seconds(work: Work, store) -> tuple[float | None, str]:
     return seconds, line
 
 
+def check_plan(plan, store, *, copies: int = 3, max_hours: float | None = None) -> dict:
+    """Refuse a planned run that cannot fit in memory or takes longer than ``max_hours``; its estimate.
+
+    See :func:`check_work`; ``copies`` as in :func:`plan_work`.
+    """
+    return check_work(plan_work(plan, store, copies=copies), store, max_hours)
+
+
+def check_work(work: Work, store, max_hours: float | None = None) -> dict:
+    """Refuse work that cannot fit in memory or takes longer than ``max_hours``; return its estimate.
+
+    Returns
+    -------
+    dict
+        ``samples`` (still to render), ``input_samples``, ``reference_samples``, ``peak_bytes``,
+        ``seconds`` (None: short or unknown) and ``announcement`` (one line for work estimated
+        over :data:`LONG_S`, else ``""``).
+
+    Raises
+    ------
+    ValueError
+        One line naming the estimate and the limit.
+    """
+    check_memory(work)
+    seconds, line = estimated_seconds(work, store)
+    if seconds is not None and max_hours is not None and seconds > max_hours * 3600:
+        raise ValueError(f"{line}; more than --max-hours {max_hours:g}")
+    return {"samples": work.total, "input_samples": work.input_samples, "reference_samples": work.reference_samples,
+            "peak_bytes": work.peak_bytes, "seconds": seconds, "announcement": line}
+
+
 def duration(seconds: float) -> str:
     """``"42 s"``, ``"12 min"``, ``"3.4 h"`` or ``"2.1 days"``."""
     if seconds < 120:
@@ -319,5 +350,6 @@ def _size(count: float) -> str:
     return f"{count:.0f} bytes"
 
 
-__all__ = ["FAST_RATE", "LONG_S", "MEMORY_ENV", "Work", "check_memory", "duration", "estimated_seconds",
-           "frame_bytes", "measure_rate", "memory_limit", "parse_bytes", "plan_work", "reference_work"]
+__all__ = ["FAST_RATE", "LONG_S", "MEMORY_ENV", "Work", "check_memory", "check_plan", "check_work", "duration",
+           "estimated_seconds", "frame_bytes", "measure_rate", "memory_limit", "parse_bytes", "plan_work",
+           "reference_work"]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import socket
-import sys
 from pathlib import Path
 
 import pandas as pd
@@ -84,20 +83,3 @@ def check_scheduler_option(args) -> None:
     address = getattr(args, "scheduler", None) or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if address:
         check_scheduler(address)
-
-
-def check_work(work, store, max_hours: float | None, command: str) -> None:
-    """Refuse work that cannot fit in memory, or that takes longer than ``max_hours``; announce long work.
-
-    One line on standard error for a run estimated to take longer than
-    :data:`harness.estimate.LONG_S`; a ``ValueError`` (one line) naming the estimate and the limit
-    otherwise.
-    """
-    from harness.estimate import check_memory, estimated_seconds
-
-    check_memory(work)
-    seconds, line = estimated_seconds(work, store)
-    if seconds is not None and max_hours is not None and seconds > max_hours * 3600:
-        raise ValueError(f"{line}; more than --max-hours {max_hours:g}")
-    if line:
-        print(f"denoise-bench {command}: {line}", file=sys.stderr, flush=True)
