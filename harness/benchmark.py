@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from harness.cache import Cache
+from harness.estimate import check_plan
 from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import Executor, PluginOptions
 from harness.plan import Plan, make_plan
@@ -56,6 +57,7 @@ def run_benchmark(
     disable: Iterable[str] = (),
     cache_dir: str | Path | None = None,
     use_cache: bool = True,
+    max_hours: float | None = None,
     resume: bool = False,
     pictures: bool = False,
     report_frames: bool = False,
@@ -97,11 +99,16 @@ def run_benchmark(
     disable : iterable of str
         Plugins left out of the jobs' workers (and of the default registry).
     cache_dir, use_cache
-        The render cache (default ``datasets/cache``), or none.
+        The render cache (default ``datasets/cache``), or none; checked writable first.
+    max_hours : float, optional
+        Refuse the run when its rendering is estimated to take longer (hours). Work that cannot
+        fit in this machine's memory is always refused; the estimate is kept in
+        ``plan.settings["estimate"]`` (:func:`harness.estimate.check_plan`).
     resume, pictures, report_frames, save_outputs, progress
         As :func:`harness.run.run_plan`.
     on_plan : callable, optional
-        Called with the plan and the scene specs before any work (e.g. to print it).
+        Called with the plan and the scene specs before any work (e.g. to print it and its
+        estimate's ``announcement``).
     on_executor : callable, optional
         Called with the executor once it is started (e.g. to print where it runs).
 
@@ -118,7 +125,7 @@ def run_benchmark(
         reference_spp=reference_spp, reference_target=reference_target, repeats=repeats,
         timing=tuple(timing_at) if timing_at is not None else None, timing_scene=timing_scene,
     )
-    store = RenderStore(registry, Cache(cache_dir, enabled=use_cache), resolution=chosen.resolution)
+    store = RenderStore(registry, Cache(cache_dir, enabled=use_cache).check(), resolution=chosen.resolution)
     specs = scene_selection(registry, store, list(scenes) if scenes is not None else None, list(scene_dirs), tasks)
     filters = list(filters) if filters is not None else sorted(
         n for n, s in registry.filters.items() if s.tasks & set(tasks))
@@ -131,6 +138,8 @@ def run_benchmark(
         timing_resolutions=chosen.timing, timing_scene=chosen.timing_scene, grid=dict(grid or {}),
     )
     plan.settings["profile"] = {**chosen.as_dict(), "name": profile}
+    copies = 1 if getattr(executor, "name", executor) == "inline" else 3  # the group's inputs in a worker too
+    plan.settings["estimate"] = check_plan(plan, store, copies=copies, max_hours=max_hours)
     if on_plan is not None:
         on_plan(plan, specs)
     if isinstance(executor, str):

@@ -12,10 +12,16 @@ import pandas as pd
 from harness.bench import DEFAULT_PEERS, bench_filters
 from harness.benchmark import run_benchmark
 from harness.cache import Cache
+from harness.cli.checks import (
+    check_rank_by,
+    check_run_options,
+    markdown_file,
+)
 from harness.cli.stress import run_stress_command, show_stress
+from harness.estimate import check_work, reference_work
 from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
-from harness.lock import FolderLock, check_out_dir
+from harness.lock import output_folder
 from harness.manifest import read_manifest
 from harness.pareto import (
     DEFAULT_BUDGETS,
@@ -59,7 +65,8 @@ def _grid(items) -> dict:
 
 
 def _cache(args) -> Cache:
-    return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False))
+    """The render cache of ``--cache-dir``/``--no-cache``, checked usable before any work."""
+    return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False)).check()
 
 
 def _cluster_options(args) -> dict:
@@ -93,13 +100,17 @@ def _progress(args) -> bool:
 
 def cmd_run(registry, args) -> int:
     """Plan, run, store and summarise a benchmark (:func:`harness.benchmark.run_benchmark`)."""
+    check_run_options(registry, args)
     _cluster_options(args)
-    with FolderLock(check_out_dir(args.out)):
+    with output_folder(args.out):
         return _run(registry, args)
 
 
 def _announce(args):
     def show(plan, specs) -> None:
+        estimate = plan.settings.get("estimate", {}).get("announcement")
+        if estimate:
+            print(f"denoise-bench run: {estimate}", file=sys.stderr)
         print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
               f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
 
@@ -120,7 +131,8 @@ def _run(registry, args) -> int:
         timing_at=args.timing_at, timing_scene=args.timing_scene, emitters=args.emitters,
         params=_grouped(args.param), presets=dict(args.preset), grid=_grid(args.grid), nonfinite=args.nonfinite,
         executor=args.executor, executor_options=_cluster_options(args), timeout=args.timeout,
-        disable=args.disable, cache_dir=args.cache_dir, use_cache=not args.no_cache, resume=args.resume,
+        disable=args.disable, cache_dir=args.cache_dir, use_cache=not args.no_cache, max_hours=args.max_hours,
+        resume=args.resume,
         pictures=args.pictures, report_frames=args.report, save_outputs=args.save_outputs,
         progress=_progress(args), on_plan=_announce(args), on_executor=_banner,
     )
@@ -184,6 +196,7 @@ def _print_time_against_error(df: pd.DataFrame, registry, args, render_cost) -> 
 def cmd_report(registry, args) -> int:
     """Write the static HTML report of a stored run."""
     started = time.perf_counter()
+    check_rank_by(read_results(args.dir), args.rank_by)
     index = write_report(args.dir, registry, out=args.out, metrics=args.plot_metrics,
                          budgets=args.budget or DEFAULT_BUDGETS, rank_by=args.rank_by)
     print(f"report written to {index} in {time.perf_counter() - started:.1f} s")
@@ -238,9 +251,12 @@ def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
 
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
+    if args.markdown is not None:
+        markdown_file(args.markdown, args.dir)
     if (read_manifest(args.dir) or {}).get("kind") == "stress":
         return show_stress(args)
     df = read_results(args.dir)
+    check_rank_by(df, args.rank_by)
     if args.all:
         print(format_table(df))
     else:
@@ -317,6 +333,9 @@ def cmd_render(registry, args) -> int:
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
     work = [_what_to_render(registry, spec, args, profile) for spec in specs]
     target = profile.reference_target
+    estimate = check_work(reference_work(store, work, target or 0.0), store, args.max_hours)
+    if estimate["announcement"]:
+        print(f"denoise-bench render: {estimate['announcement']}", file=sys.stderr)
     if args.executor == "dask":
         return _render_on_cluster(registry, args, store, work, target)
     for spec, rname, spp, frames in work:
@@ -418,8 +437,10 @@ def cmd_bench(registry, args) -> int:
     """Time filters per frame at each resolution and thread count, with peers and floors on the same frame."""
     from harness.bench_markdown import bench_markdown, environment_line
 
+    if args.markdown is not None:
+        markdown_file(args.markdown)
     peers = args.peers if args.peers is not None else [p for p in DEFAULT_PEERS if p in registry.filters]
-    store = RenderStore(registry, Cache(args.cache_dir))
+    store = RenderStore(registry, _cache(args))
 
     def say(line: str) -> None:
         if not args.quiet:
