@@ -41,6 +41,7 @@ from harness.scene import (
 )
 from harness.specs import TASKS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
 from harness.threads import compute_threads
+from harness.transforms import rotation, translation
 
 __version__ = "0.1.0"
 
@@ -91,7 +92,9 @@ __all__ = [
     "read_channels",
     "read_size",
     "read_texture",
+    "rotation",
     "srgb_to_linear",
+    "translation",
     "write_capture",
     "write_channels",
     "write_exr",
