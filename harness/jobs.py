@@ -63,7 +63,7 @@ class GroupInputs:
         Each reference's samples per pixel and median relative standard error.
     timing_frames : dict
         (width, height) -> frames at that real resolution, for jobs that time there
-        (:func:`harness.timing.timing_frames`).
+        (:func:`harness.real_resolutions.timing_frames`).
     """
 
     frames: list

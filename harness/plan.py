@@ -272,7 +272,7 @@ def make_plan(
         (excluded through the ``emission`` channel, which is then rendered).
     timing_resolutions : list of (width, height)
         Real resolutions every filter configuration is also timed at, per task and spp, on
-        :func:`timing_groups`' groups (see :mod:`harness.timing`).
+        :func:`timing_groups`' groups (see :mod:`harness.real_resolutions`).
     timing_scene : str, optional
         The scene those timings are taken on, where it serves the task.
     grid : mapping filter -> {param: list of values}, optional
