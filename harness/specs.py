@@ -258,6 +258,9 @@ class RendererSpec:
         (``captured``); chunked renderers' variance is estimated by the harness instead.
     tasks : iterable of str
         Benchmark tasks whose input and reference it makes (:data:`TASKS`).
+    deterministic : bool
+        True if it returns the same frames for every seed (captured frames): the planner then
+        runs one seed, and the leaderboard's tests resample over frames and scenes only.
     """
 
     name: str
@@ -272,6 +275,7 @@ class RendererSpec:
     chunked: bool = False
     tasks: frozenset = frozenset({"denoise"})
     reference_noise: bool = False
+    deterministic: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
@@ -287,6 +291,7 @@ class RendererSpec:
             "reference_spp": self.reference_spp,
             "chunked": self.chunked,
             "reference_noise": self.reference_noise,
+            "deterministic": self.deterministic,
             "tasks": sorted(self.tasks),
         }
 
