@@ -78,9 +78,16 @@ def time_table(result: Alternation, width: int = 16, digits: int = 1) -> str:
 def baseline_package(rev: str, path: str) -> Iterator:
     """The package at ``path`` (relative to the project root) as it was at git revision ``rev``,
     imported under another name; its temporary folder is removed on exit."""
+    with baseline_packages(rev, [path]) as (package,):
+        yield package
+
+
+@contextmanager
+def baseline_packages(rev: str, paths: Sequence[str]) -> Iterator[list]:
+    """:func:`baseline_package` for several packages of one revision (a list, in the order of ``paths``)."""
     commit = resolve_revision(rev)
-    with revision_tree(commit, [path]) as tree:
-        yield import_copy(tree / path, module_name(commit, path.replace("/", "_")))
+    with revision_tree(commit, list(paths)) as tree:
+        yield [import_copy(tree / path, module_name(commit, path.replace("/", "_"))) for path in paths]
 
 
 def machine_line() -> str:
@@ -103,6 +110,6 @@ def run(main, argv=None) -> None:
     sys.exit(code or 0)
 
 
-__all__ = ["ROOT", "SHARED_SCENES", "Alternation", "alternate", "baseline_package", "integer", "machine_line",
-           "names", "parser", "ratio_line", "resolution", "resolutions", "run", "spread", "thread_counts",
-           "time_table", "timed_call", "using_threads"]
+__all__ = ["ROOT", "SHARED_SCENES", "Alternation", "alternate", "baseline_package", "baseline_packages",
+           "integer", "machine_line", "names", "parser", "ratio_line", "resolution", "resolutions", "run", "spread",
+           "thread_counts", "time_table", "timed_call", "using_threads"]
