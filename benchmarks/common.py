@@ -7,7 +7,8 @@ instruments:
 
 - :func:`parser`: an ``argparse`` parser described by the script's docstring, with the
   harness's option types (:data:`resolution`, :data:`resolutions`, :data:`names`,
-  :data:`integer`, :data:`thread_counts`: a bad value is a one-line error, exit status 2);
+  :data:`integer`, :data:`integers`, :data:`thread_counts`: a bad value is a one-line error,
+  exit status 2);
 - :func:`alternate`, :func:`timed_call` (:mod:`harness.timer`): callables timed in turn, call by
   call, wall-clock and process CPU milliseconds; :func:`spread` and :func:`ratio_line` print
   them;
@@ -34,7 +35,7 @@ if str(ROOT) not in sys.path:  # run as ``python benchmarks/NAME.py`` from anywh
 os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 from harness.bench_baseline import import_copy, module_name, resolve_revision, revision_tree  # noqa: E402
-from harness.cli.parser import integer, names, resolution, resolutions, thread_counts  # noqa: E402
+from harness.cli.parser import integer, integers, names, resolution, resolutions, thread_counts  # noqa: E402
 from harness.threads import using_threads  # noqa: E402
 from harness.timer import Alternation, alternate, timed_call  # noqa: E402
 
@@ -111,5 +112,5 @@ def run(main, argv=None) -> None:
 
 
 __all__ = ["ROOT", "SHARED_SCENES", "Alternation", "alternate", "baseline_package", "baseline_packages",
-           "integer", "machine_line", "names", "parser", "ratio_line", "resolution", "resolutions", "run", "spread",
-           "thread_counts", "time_table", "timed_call", "using_threads"]
+           "integer", "integers", "machine_line", "names", "parser", "ratio_line", "resolution", "resolutions",
+           "run", "spread", "thread_counts", "time_table", "timed_call", "using_threads"]
