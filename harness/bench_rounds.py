@@ -336,6 +336,7 @@ def bench_rounds(
     baseline: str | None = None,
     balance: bool = False,
     steady: int = 0,
+    floors: bool = True,
     scene: str = "synthetic-edges",
     renderer: str | None = None,
     task: str = "denoise",
@@ -359,6 +360,8 @@ def bench_rounds(
         Record each thread's CPU time (``busiest_share``, ``thread_spread`` columns).
     steady : int
         Frames run before the timed one (0: one frame, two for temporal filters).
+    floors : bool
+        Time each entry's floor in the rounds too (CPU backend; default).
 
     Returns
     -------
@@ -402,7 +405,8 @@ def bench_rounds(
             inputs = _inputs(sized, scene, rname, rspec, frames, channels, with_reference=metric is not None)
             shared = Shared(make_key(bench=[scene, rname, width, height, frames]), inputs)
             entries = entries_for(specs, configured, roles, task=task, scene=scene, renderer=rname, backend=backend,
-                                  size=(width, height), frames=frames, threads=threads, baselines=baselines)
+                                  size=(width, height), frames=frames, threads=threads, baselines=baselines,
+                                  floors=floors)
             job = RoundsTask(entries, shared, rounds, score=metric is not None, balance=balance)
             for _, outcome in executor.run([job]):
                 if not outcome.ok:

@@ -99,6 +99,7 @@ def test_alternate_calls_in_the_recorded_order():
         alternate(calls, 0)
 
 
+@pytest.mark.slow
 def test_rounds_alternate_call_by_call_in_the_recorded_order(registry, store):
     result = run(registry, store, ["log_a", "log_b"], peers=["passthrough"], rounds=5)
     order = result.order["32x24"]
@@ -122,12 +123,16 @@ def test_rounds_alternate_call_by_call_in_the_recorded_order(registry, store):
 
 
 def test_steady_times_frame_n_after_n_frames_of_history(registry, store):
-    result = run(registry, store, ["log_t"], peers=[], rounds=3, steady=3)
+    result = run(registry, store, ["log_t"], peers=[], rounds=3, steady=3, floors=False)
     assert (result.table["status"] == "ok").all()
     # frames 0-2 once each, then on frame 3 the warm-up, one call, the memory's run of frames 0-3 last
     assert [c[1] for c in CALLS[:3]] == [0, 1, 2] and [c[2] for c in CALLS[:3]] == [(), (0,), (0, 1)]
     assert CALLS[3:8] == [("log_t", 3, (0, 1, 2))] * 5  # the warm-up, the build's call, 3 rounds: same history
     assert [c[1] for c in CALLS[8:]] == [0, 1, 2, 3]
+
+
+@pytest.mark.slow
+def test_steady_in_a_row_times_frame_n_after_n_frames_of_history(registry, store):
     CALLS.clear()
     table = bench_filters(registry, store(registry), InlineExecutor(registry), ["log_t"], resolutions=[(32, 24)],
                           repeats=2, steady=3, error=False).table
@@ -146,7 +151,7 @@ def test_baseline_is_imported_from_the_revision_and_timed_beside_the_current_fil
     except ValueError as exc:
         pytest.skip(f"not a git checkout: {exc}")
     _, folder = plugin_path(registry, "passthrough")
-    result = run(registry, store, ["passthrough"], peers=[], baseline="HEAD", rounds=2)
+    result = run(registry, store, ["passthrough"], peers=[], baseline="HEAD", rounds=2, floors=False)
     table = result.table
     assert list(table["filter"]) == ["passthrough", "passthrough@HEAD"] and (table["status"] == "ok").all()
     assert ("passthrough", "passthrough@HEAD") in set(zip(result.ratios["filter"], result.ratios["other"]))
@@ -164,7 +169,7 @@ def test_baseline_of_a_filter_outside_the_project_tree_is_refused(registry):
 
 def test_balance_columns_and_the_ratio_to_one_thread(registry, store):
     threads = list(dict.fromkeys([1, max_threads()]))
-    result = run(registry, store, ["alloc_frames"], peers=[], threads=threads, balance=True, rounds=2)
+    result = run(registry, store, ["alloc_frames"], peers=[], threads=threads, balance=True, rounds=2, floors=False)
     table = result.table
     for column in ("busiest_share", "thread_spread"):
         assert table[column].dtype == np.float64
