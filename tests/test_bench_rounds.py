@@ -99,7 +99,7 @@ def test_alternate_calls_in_the_recorded_order():
         alternate(calls, 0)
 
 
-@pytest.mark.slow
+@pytest.mark.slow  # compiles the floor kernels (not cached on disk)
 def test_rounds_alternate_call_by_call_in_the_recorded_order(registry, store):
     result = run(registry, store, ["log_a", "log_b"], peers=["passthrough"], rounds=5)
     order = result.order["32x24"]
@@ -183,6 +183,7 @@ def test_balance_columns_and_the_ratio_to_one_thread(registry, store):
     assert all(math.isnan(v) for v in balance({}))
 
 
+@pytest.mark.slow  # compiles the floor kernels (not cached on disk)
 def test_rounds_from_the_command_line(tmp_path):
     out = cli(["bench", "passthrough", "--peers", "", "--resolution", "32x24", "--rounds", "2", "--steady", "1",
                "--executor", "inline", "--no-error", "--quiet", "--cache-dir", tmp_path / "c",
