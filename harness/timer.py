@@ -166,19 +166,32 @@ def timed_call(fn: Callable[[], Any], cuda: bool = False) -> tuple[Any, float, f
     return out, ms, cpu_ms
 
 
+#: the index orders drawn so far, by number of names (:func:`round_order`)
+_ORDERS: dict[int, list[list[int]]] = {}
+
+
 def round_order(names: Sequence[str], round_index: int) -> list[str]:
     """The call order of round ``round_index``: ``names`` as given in round 0, then shuffled.
 
-    Round ``r`` > 0 is a permutation drawn from a generator seeded with ``r`` (the same on
-    every run): every name goes through varied positions and, above all, follows varied others,
-    so that what one call leaves behind (a library's pool threads that keep a core busy after
-    it returns, a cache it filled) is not charged to the same name round after round, as a plain
-    rotation would.
+    Round ``r`` > 0 is a permutation drawn from a generator seeded with (``r``, number of
+    names), the same on every run, redrawn until it differs from round ``r - 1``'s and from
+    the given order (two names simply swap every round): every name goes through varied
+    positions and, above all, follows varied others, so that what one call leaves behind (a
+    library's pool threads that keep a core busy after it returns, a cache it filled) is not
+    charged to the same name round after round, as a plain rotation would.
     """
     names = list(names)
-    if round_index == 0 or len(names) < 2:
-        return names
-    return [names[k] for k in np.random.default_rng(round_index).permutation(len(names))]
+    n = len(names)
+    if n < 3:
+        return names if round_index % 2 == 0 else names[::-1]
+    orders = _ORDERS.setdefault(n, [list(range(n))])
+    while len(orders) <= round_index:
+        rng = np.random.default_rng([len(orders), n])
+        order = rng.permutation(n).tolist()
+        while order == orders[0] or order == orders[-1]:
+            order = rng.permutation(n).tolist()
+        orders.append(order)
+    return [names[k] for k in orders[round_index]]
 
 
 @dataclass

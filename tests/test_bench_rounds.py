@@ -84,7 +84,10 @@ def test_round_order_is_the_given_one_then_seeded_permutations():
     orders = [round_order(names, r) for r in range(1, 6)]
     assert all(sorted(o) == names for o in orders) and len({tuple(o) for o in orders}) > 1
     assert orders == [round_order(names, r) for r in range(1, 6)]  # the same on every run
+    for r in range(1, 40):  # never the given order again, never the previous round's
+        assert round_order(names[:3], r) not in (names[:3], round_order(names[:3], r - 1))
     assert round_order([], 3) == [] and round_order(["a"], 3) == ["a"]
+    assert round_order(["a", "b"], 1) == ["b", "a"] and round_order(["a", "b"], 2) == ["a", "b"]
 
 
 def test_alternate_calls_in_the_recorded_order():
