@@ -118,7 +118,8 @@ def test_case_selection_by_name_group_and_pattern():
     assert [c.name for c in select_cases(["shape-1x1"])] == ["shape-1x1"]
     assert {c.group for c in select_cases(["policy"])} == {"policy"}
     assert {c.name for c in select_cases(["guide-normal-*"])} == {
-        "guide-normal-nan", "guide-normal-inf", "guide-normal-neginf", "guide-normal-max", "guide-normal-zero"}
+        "guide-normal-nan", "guide-normal-inf", "guide-normal-neginf", "guide-normal-max", "guide-normal-zero",
+        "guide-normal-nan-all"}
     assert not any(c.heavy for c in select_cases(heavy=False))
     assert select_cases(["light"]) == select_cases(heavy=False) and select_cases(["all"]) == list(CASES.values())
     with pytest.raises(ValueError, match=r"no stress case matches 'nope' \(.*a group: colour, guide.*'all'\)$"):

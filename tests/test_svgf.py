@@ -51,7 +51,8 @@ def _svgf(registry, **params):
 def test_spec_declares_paper_defaults_and_presets(registry):
     spec = registry.filters["svgf"]
     assert spec.temporal
-    assert {"color", "albedo", "normal", "depth", "object_id", "motion"} <= spec.requires
+    assert spec.requires == {"color", "albedo", "normal"}  # the others: degraded modes without them
+    assert spec.full_guides == {"albedo", "normal", "depth", "object_id", "motion"}
     assert spec.params["iterations"] == 5 and spec.params["alpha_color"] == 0.2
     assert spec.params["sigma_z"] == 1.0 and spec.params["sigma_n"] == 128.0 and spec.params["sigma_l"] == 4.0
     falcor = spec.presets["falcor"]
