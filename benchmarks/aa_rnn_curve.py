@@ -1,14 +1,15 @@
 """The learning curve of ``aa_rnn``: held-out quality against TAA for growing training sets and
 training lengths, trained on the paper-scale dataset (``plugins/filters/aa_rnn/dataset.py``).
 
-    python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--epochs 300 --crop 32]
+    python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E]
     python benchmarks/aa_rnn_curve.py evaluate --data DIR --out DIR
     python benchmarks/aa_rnn_curve.py report   --out DIR [--plot docs/images/aa_rnn_curve.png]
 
 ``train`` trains one point (the first N sequences of the training split, seed S) with
-``dataset_training.train_on_dataset`` (checkpointed: run it again to resume), writing
-``n{N}-s{S}.npz`` and its snapshots ``n{N}-s{S}-e{E}.npz`` (the best weights by validation L1 up
-to epoch E). ``evaluate`` scores every weights file of the folder not yet scored, and TAA and the
+``dataset_training.train_on_dataset`` (checkpointed: run it again to resume), for ``--epochs``
+or for the epochs nearest to ``--steps`` batches of 8, writing ``n{N}-s{S}.npz`` and its
+snapshots ``n{N}-s{S}-e{E}.npz`` (the best weights by validation L1 up to epoch E) at a quarter
+and a half of the run. ``evaluate`` scores every weights file of the folder not yet scored, and TAA and the
 aliased input once, on
 
 * the **test split** of the dataset (every test sequence, whole, from a camera cut): SSIM (the
@@ -51,12 +52,15 @@ def train(args) -> None:
 
     import torch
 
-    from plugins.filters.aa_rnn.dataset_training import EpochConfig, train_on_dataset
+    from plugins.filters.aa_rnn.dataset_training import EpochConfig, steps_per_epoch, train_on_dataset
 
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
     torch.set_num_threads(1)
-    config = EpochConfig(layers=args.layers, epochs=args.epochs, crop=args.crop, train_sequences=args.size,
-                         snapshots=tuple(args.snapshots))
+    per_epoch = steps_per_epoch(args.size, 8)
+    epochs = args.epochs or max(1, round(args.steps / per_epoch))
+    config = EpochConfig(layers=args.layers, epochs=epochs, crop=args.crop, train_sequences=args.size,
+                         val_sequences=args.val_sequences, eval_every=max(1, epochs // 20),
+                         snapshots=tuple(sorted({e for e in (epochs // 4, epochs // 2) if 0 < e < epochs})))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = train_on_dataset(args.data, out / f"n{args.size}-s{args.seed}.npz", seed=args.seed, config=config,
@@ -262,10 +266,11 @@ def main(argv=None) -> None:
     t.add_argument("--out", required=True)
     t.add_argument("--size", type=int, required=True, help="training sequences (the first N of the split)")
     t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--epochs", type=int, default=300)
+    t.add_argument("--steps", type=int, default=6000, help="batches of 8 to train for (rounded to whole epochs)")
+    t.add_argument("--epochs", type=int, default=None, help="epochs instead of --steps (the paper: 300)")
     t.add_argument("--crop", type=int, default=32)
     t.add_argument("--layers", type=int, default=2)
-    t.add_argument("--snapshots", type=lambda s: [int(v) for v in s.split(",") if v], default=[10, 30, 100])
+    t.add_argument("--val-sequences", type=int, default=64)
     t.add_argument("--until-epoch", type=int, default=None)
     e = sub.add_parser("evaluate")
     e.add_argument("--data", required=True)
