@@ -92,9 +92,11 @@ class Sets:
     def __init__(self, registry, data: Path, test_limit: int | None):
         from plugins.filters.aa_rnn import dataset as DS
 
-        _, entries = DS.open_dataset(data)
+        _, entries = DS.open_dataset(data, complete=False)
         self.test = []
         for e in [e for e in entries if e["split"] == "test"][:test_limit]:
+            if DS.read_meta(DS.sequence_path(data, e["index"])) is None:
+                raise FileNotFoundError(f"test sequence {e['index']} is not rendered yet")
             a = DS.read_sequence(DS.sequence_path(data, e["index"]))
             frames = _sequence_frames(a)
             refs = list(a["reference"])

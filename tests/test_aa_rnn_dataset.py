@@ -106,6 +106,10 @@ def test_writer_resumes_renders_only_what_is_missing_and_refuses_other_settings(
     truncated = DS.sequence_path(folder, 2)
     truncated.write_bytes(truncated.read_bytes()[:100])  # a damaged file is rendered again
     DS.sequence_path(folder, 4).unlink()
+    # a dataset being made serves the sequences it holds, and names the first one it lacks
+    assert len(DS.load_split(folder, "train", 2)[0]) == 2
+    with pytest.raises(FileNotFoundError, match="sequence 2 "):
+        DS.load_split(folder, "train")
     rendered = []
     real = DS.render_sequence
     monkeypatch.setattr(DS, "render_sequence", lambda c, e, r=None: rendered.append(e["index"]) or real(c, e, r))

@@ -384,13 +384,13 @@ def _write_manifest(folder: Path, manifest: dict) -> None:
     os.replace(tmp, path)
 
 
-def open_dataset(folder: Path) -> tuple[DatasetConfig, list[dict]]:
-    """The config and plan of a complete dataset folder.
+def open_dataset(folder: Path, complete: bool = True) -> tuple[DatasetConfig, list[dict]]:
+    """The config and plan of a dataset folder.
 
     Raises
     ------
     FileNotFoundError, ValueError
-        No dataset there, or not complete (rerun its command to finish it).
+        No dataset there, or (``complete=True``) not complete: rerun its command to finish it.
     """
     manifest = read_manifest(folder)
     if manifest is None:
@@ -398,7 +398,7 @@ def open_dataset(folder: Path) -> tuple[DatasetConfig, list[dict]]:
                                 f"`denoise-bench train aa_rnn -o data={folder} -o stage=dataset`)")
     if manifest.get("format") != FORMAT or manifest.get("format_version") != FORMAT_VERSION:
         raise ValueError(f"aa_rnn dataset {folder}: not an {FORMAT} folder of version {FORMAT_VERSION}")
-    if not manifest.get("complete"):
+    if complete and not manifest.get("complete"):
         raise ValueError(f"aa_rnn dataset {folder}: incomplete; rerun the command that made it to finish it")
     c = manifest["config"]
     return DatasetConfig(**dict(c, mitsuba=tuple(c["mitsuba"]))), manifest["plan"]
@@ -500,14 +500,25 @@ def _run(folder: Path, config: DatasetConfig, todo: list, workers: int, executor
 
 def load_split(folder, split: str, limit: int | None = None) -> tuple[list[np.ndarray], list[dict]]:
     """The prepared (F, 12, H, W) arrays (:func:`.data.to_planes`) and metas of one split, in index
-    order; the first ``limit`` sequences only if given."""
+    order; the first ``limit`` sequences only if given. Only those need to be rendered: a dataset
+    still being made serves the sequences it already holds.
+
+    Raises
+    ------
+    FileNotFoundError
+        A sequence asked for is not (yet) in the folder.
+    """
     from .data import to_planes
 
-    _, entries = open_dataset(Path(folder))
+    _, entries = open_dataset(Path(folder), complete=False)
     chosen = [e for e in entries if e["split"] == split][:limit]
     planes, metas = [], []
     for e in chosen:
-        a = read_sequence(sequence_path(folder, e["index"]))
+        path = sequence_path(folder, e["index"])
+        if read_meta(path) is None:
+            raise FileNotFoundError(f"aa_rnn dataset {folder}: sequence {e['index']} ({split}) is not rendered yet; "
+                                    f"rerun the dataset's command to finish it")
+        a = read_sequence(path)
         planes.append(to_planes(a["color"], a["normal"], a["depth"], a["motion"], a["jitter"], a["reference"]))
         metas.append(a["meta"])
     return planes, metas

@@ -130,7 +130,6 @@ def train_on_dataset(folder, output, seed: int = 0, config: EpochConfig = EpochC
     checkpoint holds it; call again to go on).
     """
     folder, output = Path(folder), Path(output)
-    _, entries = DS.open_dataset(folder)
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
