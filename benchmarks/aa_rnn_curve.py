@@ -2,15 +2,15 @@
 training lengths, trained on the paper-scale dataset (``plugins/filters/aa_rnn/dataset.py``).
 
     python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E]
-    python benchmarks/aa_rnn_curve.py evaluate --data DIR --out DIR
+    python benchmarks/aa_rnn_curve.py evaluate --data DIR --out DIR [--test-limit N] [--only GLOB]
     python benchmarks/aa_rnn_curve.py report   --out DIR [--plot docs/images/aa_rnn_curve.png]
 
 ``train`` trains one point (the first N sequences of the training split, seed S) with
 ``dataset_training.train_on_dataset`` (checkpointed: run it again to resume), for ``--epochs``
 or for the epochs nearest to ``--steps`` batches of 8, writing ``n{N}-s{S}.npz`` and its
 snapshots ``n{N}-s{S}-e{E}.npz`` (the best weights by validation L1 up to epoch E) at a quarter
-and a half of the run. ``evaluate`` scores every weights file of the folder not yet scored, and TAA and the
-aliased input once, on
+and a half of the run. ``evaluate`` scores every weights file of the folder not yet scored, and the baselines
+(the aliased input, TAA, ``aa_rnn`` with its shipped weights) once, on
 
 * the **test split** of the dataset (every test sequence, whole, from a camera cut): SSIM (the
   harness's ``ssim``), ``temporal_error`` and the ghosting measure of ``antialias.py`` (mean
@@ -18,7 +18,7 @@ aliased input once, on
 * the three **benchmark scenes** (held out from every dataset), 24 frames at 320x180 from a camera
   cut against 8x8 SSAA, as ``antialias.py quality`` scores them (renders shared with it).
 
-Results go to ``DIR/scores.json``. ``report`` prints the Markdown tables (mean and range over
+Results go to ``DIR/scores.json`` (several ``evaluate`` processes, each with its own ``--only``, can share it). ``report`` prints the Markdown tables (mean and range over
 seeds) and draws the plot. Everything runs with one PyTorch and one Numba thread.
 """
 
@@ -44,7 +44,9 @@ from harness import Frame, FrameMeta, encode_srgb, load_plugins  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 NAME = re.compile(r"^n(\d+)-s(\d+)(?:-e(\d+))?\.npz$")
-BASELINES = ("noaa", "taa")
+#: scored once: the aliased input, TAA's defaults and ``aa_rnn`` with its shipped weights
+BASELINES = ("noaa", "taa", "aa_rnn")
+LABELS = {"noaa": "`noaa`", "taa": "`taa`", "aa_rnn": "`aa_rnn`, shipped weights"}
 
 
 def train(args) -> None:
@@ -141,16 +143,17 @@ def evaluate(args) -> None:
     print(f"inputs: {len(sets.test)} test sequences, {len(sets.bench)} benchmark scenes "
           f"({time.perf_counter() - t0:.0f} s)", flush=True)
     todo = [(b, lambda b=b: registry.get("filter", b).factory(backend="cpu")) for b in BASELINES if b not in scores]
-    for weights in sorted(out.glob("*.npz")):
+    for weights in sorted(out.glob(args.only)):
         if NAME.match(weights.name) and weights.name not in scores:
             from plugins.filters.aa_rnn.weights import load_weights
 
             layers = load_weights(weights)[1]["layers"]
             todo.append((weights.name, lambda w=weights, n=layers: registry.get("filter", "aa_rnn").factory(
                 backend="cpu", layers=n, weights=str(w))))
+    mine = {}
     for key, factory in todo:
         t0 = time.process_time()
-        scores[key] = score_filter(factory, sets, metrics)
+        scores[key] = mine[key] = score_filter(factory, sets, metrics)
         if key.endswith(".npz"):
             from plugins.filters.aa_rnn.weights import load_weights
 
@@ -161,7 +164,9 @@ def evaluate(args) -> None:
         bench = np.mean([v["ssim"] for v in scores[key]["bench"].values()])
         print(f"{key}: test SSIM {scores[key]['test']['ssim']:.4f}, benchmark SSIM {bench:.4f} "
               f"({time.process_time() - t0:.0f} CPU s)", flush=True)
-        path.write_text(json.dumps(scores, indent=1, sort_keys=True))
+        # merged with what other evaluate processes of the folder wrote meanwhile
+        merged = dict(json.loads(path.read_text()) if path.is_file() else {}, **mine)
+        path.write_text(json.dumps(merged, indent=1, sort_keys=True))
 
 
 def _points(scores: dict) -> dict:
@@ -199,7 +204,7 @@ def report(args) -> None:
     print("|---" * (10 + len(scenes)) + "|")
     for label in BASELINES:
         v = scores[label]
-        print(f"| `{label}` | - | - | {v['test']['ssim']:.4f} | {v['test']['temporal_error']:.4f} | "
+        print(f"| {LABELS[label]} | - | - | {v['test']['ssim']:.4f} | {v['test']['temporal_error']:.4f} | "
               f"{v['test']['ghost']:.4f} | {_bench_mean(v, 'ssim'):.4f} | "
               + " | ".join(f"{v['bench'][s]['ssim']:.4f}" for s in scenes)
               + f" | {_bench_mean(v, 'temporal_error'):.4f} | {_bench_mean(v, 'ghost'):.4f} | - |")
@@ -230,24 +235,21 @@ def _plot(scores: dict, points: dict, path: Path) -> None:
         def value(v, where=where):
             return v["test"]["ssim"] if where == "test" else _bench_mean(v, "ssim")
 
-        sizes = sorted({s for s, _ in points})
-        epochs = sorted({e for _, e in points if e is not None}) + [None]
-        for epoch in epochs:
-            xs, ys, lo, hi = [], [], [], []
-            for size in sizes:
-                runs = points.get((size, epoch))
-                if not runs:
-                    continue
-                vals = [value(r) for r in runs.values()]
-                xs.append(size)
-                ys.append(np.mean(vals))
-                lo.append(np.mean(vals) - min(vals))
-                hi.append(max(vals) - np.mean(vals))
-            if xs:
-                label = "end of run (300 epochs)" if epoch is None else f"after {epoch} epochs"
-                ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label=label)
-        for label, style in (("taa", "--"), ("noaa", ":")):
-            ax.axhline(value(scores[label]), color="k", linestyle=style, label=f"`{label}`")
+        # one line per training length: the sizes' runs of equal step budgets have different epoch
+        # counts, so their snapshots (a quarter, a half, the end) are grouped by steps (to 100)
+        lines: dict = {}
+        for (size, _), runs in points.items():
+            steps = int(round(next(iter(runs.values()))["training"]["steps_run"], -2))
+            lines.setdefault(steps, {})[size] = [value(r) for r in runs.values()]
+        for steps, by_size in sorted(lines.items()):
+            xs = sorted(by_size)
+            ys = [float(np.mean(by_size[x])) for x in xs]
+            lo = [y - min(by_size[x]) for x, y in zip(xs, ys)]
+            hi = [max(by_size[x]) - y for x, y in zip(xs, ys)]
+            ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label=f"about {steps} steps of batch 8")
+        for label, style in (("taa", "--"), ("noaa", ":"), ("aa_rnn", "-.")):
+            if label in scores:
+                ax.axhline(value(scores[label]), color="k", linestyle=style, label=LABELS[label].replace("`", ""))
         ax.set_xscale("log")
         ax.set_xlabel("training sequences (7 frames each)")
         ax.set_ylabel("SSIM against 8x8 SSAA")
@@ -278,6 +280,7 @@ def main(argv=None) -> None:
     e.add_argument("--data", required=True)
     e.add_argument("--out", required=True)
     e.add_argument("--test-limit", type=int, default=None, help="score the first N test sequences only")
+    e.add_argument("--only", default="*.npz", help="score the weights files of the folder matching this pattern only")
     r = sub.add_parser("report")
     r.add_argument("--out", required=True)
     r.add_argument("--plot", default=None)
