@@ -18,8 +18,9 @@ and a half of the run. ``evaluate`` scores every weights file of the folder not 
 * the three **benchmark scenes** (held out from every dataset), 24 frames at 320x180 from a camera
   cut against 8x8 SSAA, as ``antialias.py quality`` scores them (renders shared with it).
 
-Results go to ``DIR/scores.json`` (several ``evaluate`` processes, each with its own ``--only``, can share it). ``report`` prints the Markdown tables (mean and range over
-seeds) and draws the plot. Everything runs with one PyTorch and one Numba thread.
+Results go to ``DIR/scores.json`` (several ``evaluate`` processes, each with its own ``--only``,
+can share it). ``report`` prints the Markdown tables (mean and range over seeds) and draws the
+plot. Everything runs with one PyTorch and one Numba thread.
 """
 
 from __future__ import annotations
