@@ -144,7 +144,7 @@ def evaluate(args) -> None:
     print(f"inputs: {len(sets.test)} test sequences, {len(sets.bench)} benchmark scenes "
           f"({time.perf_counter() - t0:.0f} s)", flush=True)
     todo = [(b, lambda b=b: registry.get("filter", b).factory(backend="cpu")) for b in BASELINES if b not in scores]
-    for weights in sorted(out.glob(args.only)):
+    for weights in sorted({w for pattern in args.only or ["*.npz"] for w in out.glob(pattern)}):
         if NAME.match(weights.name) and weights.name not in scores:
             from plugins.filters.aa_rnn.weights import load_weights
 
@@ -281,7 +281,8 @@ def main(argv=None) -> None:
     e.add_argument("--data", required=True)
     e.add_argument("--out", required=True)
     e.add_argument("--test-limit", type=int, default=None, help="score the first N test sequences only")
-    e.add_argument("--only", default="*.npz", help="score the weights files of the folder matching this pattern only")
+    e.add_argument("--only", action="append", default=None, metavar="GLOB",
+                   help="score the weights files of the folder matching this pattern only (repeatable)")
     r = sub.add_parser("report")
     r.add_argument("--out", required=True)
     r.add_argument("--plot", default=None)
