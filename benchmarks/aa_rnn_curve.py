@@ -252,6 +252,9 @@ def _plot(scores: dict, points: dict, path: Path) -> None:
             if label in scores:
                 ax.axhline(value(scores[label]), color="k", linestyle=style, label=LABELS[label].replace("`", ""))
         ax.set_xscale("log")
+        sizes = sorted({size for size, _ in points})
+        ax.set_xticks(sizes, [str(size) for size in sizes])
+        ax.minorticks_off()
         ax.set_xlabel("training sequences (7 frames each)")
         ax.set_ylabel("SSIM against 8x8 SSAA")
         ax.set_title(title)
