@@ -25,25 +25,20 @@ plot. Everything runs with one PyTorch and one Numba thread.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import re
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from antialias import GBUFFER, moving_trails, render_scene, trail_masks  # noqa: E402
+from common import integer, parser, run, timed_call  # noqa: E402
 
 from harness import Frame, FrameMeta, encode_srgb, load_plugins  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
 NAME = re.compile(r"^n(\d+)-s(\d+)(?:-e(\d+))?\.npz$")
 #: scored once: the aliased input, TAA's defaults and ``aa_rnn`` with its shipped weights
 BASELINES = ("noaa", "taa", "aa_rnn")
@@ -139,10 +134,9 @@ def evaluate(args) -> None:
     out = Path(args.out)
     path = out / "scores.json"
     scores = json.loads(path.read_text()) if path.is_file() else {}
-    t0 = time.perf_counter()
-    sets = Sets(registry, Path(args.data), args.test_limit)
+    sets, wall_ms, _ = timed_call(lambda: Sets(registry, Path(args.data), args.test_limit))
     print(f"inputs: {len(sets.test)} test sequences, {len(sets.bench)} benchmark scenes "
-          f"({time.perf_counter() - t0:.0f} s)", flush=True)
+          f"({wall_ms / 1e3:.0f} s)", flush=True)
     todo = [(b, lambda b=b: registry.get("filter", b).factory(backend="cpu")) for b in BASELINES if b not in scores]
     for weights in sorted({w for pattern in args.only or ["*.npz"] for w in out.glob(pattern)}):
         if NAME.match(weights.name) and weights.name not in scores:
@@ -153,8 +147,8 @@ def evaluate(args) -> None:
                 backend="cpu", layers=n, weights=str(w))))
     mine = {}
     for key, factory in todo:
-        t0 = time.process_time()
-        scores[key] = mine[key] = score_filter(factory, sets, metrics)
+        scores[key], _, cpu_ms = timed_call(lambda f=factory: score_filter(f, sets, metrics))
+        mine[key] = scores[key]
         if key.endswith(".npz"):
             from plugins.filters.aa_rnn.weights import load_weights
 
@@ -164,7 +158,7 @@ def evaluate(args) -> None:
             scores[key]["training"]["train_sequences"] = meta["config"]["train_sequences"]
         bench = np.mean([v["ssim"] for v in scores[key]["bench"].values()])
         print(f"{key}: test SSIM {scores[key]['test']['ssim']:.4f}, benchmark SSIM {bench:.4f} "
-              f"({time.process_time() - t0:.0f} CPU s)", flush=True)
+              f"({cpu_ms / 1e3:.0f} CPU s)", flush=True)
         # merged with what other evaluate processes of the folder wrote meanwhile
         merged = dict(json.loads(path.read_text()) if path.is_file() else {}, **mine)
         path.write_text(json.dumps(merged, indent=1, sort_keys=True))
@@ -266,32 +260,33 @@ def _plot(scores: dict, points: dict, path: Path) -> None:
     print(path)
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    sub = ap.add_subparsers(dest="command", required=True)
     t = sub.add_parser("train")
     t.add_argument("--data", required=True)
     t.add_argument("--out", required=True)
-    t.add_argument("--size", type=int, required=True, help="training sequences (the first N of the split)")
-    t.add_argument("--seed", type=int, default=0)
-    t.add_argument("--steps", type=int, default=6000, help="batches of 8 to train for (rounded to whole epochs)")
-    t.add_argument("--epochs", type=int, default=None, help="epochs instead of --steps (the paper: 300)")
-    t.add_argument("--crop", type=int, default=32)
-    t.add_argument("--layers", type=int, default=2)
-    t.add_argument("--val-sequences", type=int, default=64)
-    t.add_argument("--until-epoch", type=int, default=None)
+    t.add_argument("--size", type=integer(1), required=True, help="training sequences (the first N of the split)")
+    t.add_argument("--seed", type=integer(0), default=0)
+    t.add_argument("--steps", type=integer(1), default=6000, help="batches of 8 to train for (rounded to whole epochs)")
+    t.add_argument("--epochs", type=integer(1), default=None, help="epochs instead of --steps (the paper: 300)")
+    t.add_argument("--crop", type=integer(4), default=32)
+    t.add_argument("--layers", type=integer(1), default=2)
+    t.add_argument("--val-sequences", type=integer(1), default=64)
+    t.add_argument("--until-epoch", type=integer(1), default=None)
     e = sub.add_parser("evaluate")
     e.add_argument("--data", required=True)
     e.add_argument("--out", required=True)
-    e.add_argument("--test-limit", type=int, default=None, help="score the first N test sequences only")
+    e.add_argument("--test-limit", type=integer(1), default=None, help="score the first N test sequences only")
     e.add_argument("--only", action="append", default=None, metavar="GLOB",
                    help="score the weights files of the folder matching this pattern only (repeatable)")
     r = sub.add_parser("report")
     r.add_argument("--out", required=True)
     r.add_argument("--plot", default=None)
-    args = parser.parse_args(argv)
+    args = ap.parse_args(argv)
     {"train": train, "evaluate": evaluate, "report": report}[args.command](args)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)
