@@ -114,6 +114,8 @@ def _announce(args):
         estimate = plan.settings.get("estimate", {}).get("announcement")
         if estimate:
             print(f"denoise-bench run: {estimate}", file=sys.stderr)
+        for note in plan.notes:
+            print(f"denoise-bench run: {note}", file=sys.stderr)
         print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
               f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
 
