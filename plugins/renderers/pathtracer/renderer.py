@@ -30,7 +30,7 @@ class FrameSetup:
         cam = scene.camera
         right, up, forward = (tuple(float(x) for x in v) for v in cam.basis(frame_index))
         eye = tuple(float(x) for x in cam.eye(frame_index))
-        tan_half = float(np.tan(np.radians(cam.fov) / 2.0))
+        tan_half = float(np.tan(np.radians(cam.fov_at(frame_index)) / 2.0))
         self.origins, self.dirs, self.tri, self.bary = first_hits(eye, right, up, forward, tan_half, width,
                                                                   height, data.geometry(), data.materials(),
                                                                   data.depth, numba.get_num_threads())
