@@ -39,7 +39,7 @@ from harness.scene import (
     read_texture,
     srgb_to_linear,
 )
-from harness.specs import TASKS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
+from harness.specs import TASKS, TIERS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
 from harness.threads import compute_threads
 
 __version__ = "0.1.0"
@@ -76,6 +76,7 @@ __all__ = [
     "StageTimedFilter",
     "Sun",
     "TASKS",
+    "TIERS",
     "TriangleSoup",
     "__version__",
     "available_backends",

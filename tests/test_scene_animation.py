@@ -1,7 +1,8 @@
 """Mitsuba scenes as sequences: the animation.toml sidecar, the generated default path, exact motion.
 
-A small room (a closed box, a textured floor and back wall, a box that moves) written to a
-temporary folder; the shared third-party scenes where ``../shared/scenes`` exists (slow).
+A small room (a closed box lit by a ceiling light, a textured floor and back wall, a box that
+moves) written to a temporary folder; the shared third-party scenes where ``../shared/scenes``
+exists (slow).
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ ROOM_XML = """\
   <shape type="obj"><string name="filename" value="wall.obj"/><ref id="Floor"/></shape>
   <shape type="cube" id="box"><transform name="toWorld"><scale value="0.5"/><translate x="1" y="0.5" z="-1"/>
     </transform><ref id="Red"/></shape>
+  <shape type="rectangle"><transform name="toWorld"><rotate x="1" angle="90"/><translate y="5.9"/></transform>
+    <emitter type="area"><rgb name="radiance" value="10, 10, 10"/></emitter></shape>
   <emitter type="constant"><rgb name="radiance" value="1, 1, 1"/></emitter>
 </scene>
 """
@@ -77,9 +80,13 @@ rotate = [0, 1, 0, 40]
 
 @pytest.fixture
 def room(tmp_path):
+    return write_room(tmp_path / "room")
+
+
+def write_room(folder: Path) -> Path:
+    """The small room's scene folder (scene.xml, two OBJ quads, a texture) at ``folder``."""
     import OpenImageIO as oiio
 
-    folder = tmp_path / "room"
     folder.mkdir()
     (folder / "scene.xml").write_text(ROOM_XML)
     (folder / "floor.obj").write_text(quad_obj([(-5, 0, 5), (5, 0, 5), (5, 0, -5), (-5, 0, -5)]))
@@ -132,8 +139,8 @@ def test_keyframed_camera_and_shape_follow_the_sidecar(room):
     assert angle == pytest.approx(40.0)
     assert all(o.transforms is None for o in scene.objects if o.name != "box")
     # objects map to their elements: shape<k> for shapes without an id
-    assert [s["object"] for s in scene.params["shapes"]] == ["shape0", "shape1", "shape2", "box"]
-    assert [s["element"] for s in scene.params["shapes"]] == [0, 1, 2, 3]
+    assert [s["object"] for s in scene.params["shapes"]] == ["shape0", "shape1", "shape2", "box", "shape4"]
+    assert [s["element"] for s in scene.params["shapes"]] == [0, 1, 2, 3, 4]
     assert scene.params["animation"]["camera"] == "keyframes"
 
 
