@@ -161,3 +161,18 @@ def test_a_run_with_both_tiers_ranks_each_and_states_their_agreement(room, tmp_p
     assert "tier real (room)" in shown and "procedural vs real" in shown
     markdown = (tmp_path / "board.md").read_text()
     assert "## Task denoise, tier real" in markdown and "## Rank agreement between the tiers" in markdown
+
+
+def test_renderer_options_are_checked_against_the_factory():
+    import argparse
+
+    from harness.cli import commands
+
+    reg = load_plugins()
+    ok = argparse.Namespace(renderer_option=[("pathtracer", "jitter", True), ("pathtracer", "reference_pixel",
+                                                                               "centre")])
+    assert commands._renderer_settings(reg, ok) == {"pathtracer": {"jitter": True, "reference_pixel": "centre"}}
+    with pytest.raises(ValueError, match=r"renderer 'pathtracer' has no option\(s\) \['speed'\]"):
+        commands._renderer_settings(reg, argparse.Namespace(renderer_option=[("pathtracer", "speed", 2)]))
+    with pytest.raises(KeyError):
+        commands._renderer_settings(reg, argparse.Namespace(renderer_option=[("no-such-renderer", "x", 1)]))
