@@ -9,6 +9,7 @@ and :meth:`RenderStore.reference` (chunked and resumable where the renderer decl
 from __future__ import annotations
 
 import dataclasses
+import os
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -300,8 +301,6 @@ def default_scene_root() -> Path | None:
     FileNotFoundError
         ``$DENOISE_SCENES`` names no folder.
     """
-    import os
-
     named = os.environ.get(SCENES_ENV, "").strip()
     if named:
         root = Path(named).expanduser()

@@ -49,14 +49,14 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
 
 
 def summary(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (task, scene, filter, preset, backend, spp): metric means over frames and seeds, times, statuses.
+    """Per (task, tier, scene, filter, preset, backend, spp): metric means over frames and seeds, times, statuses.
 
     ``ms_median`` is the median per-frame time at the scene's (quality) resolution;
     ``ms_1280x720`` and ``ms_1920x1080`` the real-resolution timings where this scene was the
     timing scene; ``reference_noise`` the mean noise floor of its references.
     """
     metrics = metric_columns(df)
-    keys = ["task", "scene", "filter", "preset", "backend", "spp"]
+    keys = ["task", "tier", "scene", "filter", "preset", "backend", "spp"]
     rows = []
     for key, g in df.groupby(keys, sort=True, dropna=False):
         ok = g[g.status == "ok"]

@@ -150,8 +150,18 @@ def _selection(registry, args, store, tasks, profile) -> list:
     return specs
 
 
+def _check_filters(registry, args) -> None:
+    """Named filters and their ``--param`` values, checked before any scene is opened (opening the real
+    tier's scene folders takes seconds); the planner checks everything again."""
+    for name in args.filters or []:
+        registry.get("filter", name)
+    for name, values in _grouped(args.param).items():
+        registry.get("filter", name).check_params(values)
+
+
 def _run(registry, args, tasks) -> int:
     profile = _profile(args)
+    _check_filters(registry, args)
     store = RenderStore(registry, _cache(args), resolution=profile.resolution,
                         renderer_settings=_renderer_settings(registry, args))
     specs = _selection(registry, args, store, tasks, profile)
