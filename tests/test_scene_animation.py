@@ -8,8 +8,6 @@ exists (slow).
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 import textwrap
 import warnings
 from pathlib import Path
@@ -21,6 +19,7 @@ from harness import CameraPath, load_plugins
 from plugins.scenes.mitsuba import MitsubaWarning, load
 from plugins.scenes.mitsuba.animation import DEFAULT_FRAMES, eased
 from plugins.scenes.mitsuba.camera_path import DOLLY_FRACTION, PAN, RaysFrom, crossings, scene_bounds
+from tests.conftest import cli
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared" / "scenes"
@@ -198,12 +197,10 @@ def test_a_path_leaving_the_bounds_is_refused_in_one_line(room):
     assert "\n" not in str(info.value) and "animation.toml" in str(info.value)
 
 
-@pytest.mark.slow
 def test_the_cli_refuses_a_path_leaving_the_bounds_with_exit_status_2(room, tmp_path):
     (room / "animation.toml").write_text(LEAVING)
-    run = subprocess.run([sys.executable, "-m", "harness.cli", "run", "--scene-dir", str(room), "--filters",
-                          "passthrough", "--out", str(tmp_path / "out"), "--no-cache", "--quiet"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=600)
+    run = cli(["run", "--scene-dir", room, "--filters", "passthrough", "--out", tmp_path / "out", "--no-cache",
+               "--quiet"], check=False)
     assert run.returncode == 2, run.stderr
     lines = [line for line in run.stderr.splitlines() if "warning" not in line]
     assert len(lines) == 1 and "leaves the scene bounds" in lines[0], run.stderr
