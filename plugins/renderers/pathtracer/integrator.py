@@ -489,7 +489,7 @@ def accumulate_area(eye, right, up, forward, tan_half, width, height, geom, mats
         stack_n = np.empty(stack_size(depth), np.int32)
         stack_t = np.empty(stack_size(depth), np.float32)
         while True:
-            task = take(counter)
+            task = kernels.take(counter)
             if task >= tasks:
                 break
             for i in range(task * TASK, min(task * TASK + TASK, n)):

@@ -47,6 +47,8 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
+from harness import translation
+
 #: the sidecar's file name, looked for beside the scene file
 SIDECAR = "animation.toml"
 #: frames of a scene without a sidecar, or of a sidecar that gives none
@@ -285,10 +287,9 @@ def shape_transforms(motion: ShapeMotion, frames: int, pivot: np.ndarray) -> np.
         k2 = min(k + 1, len(motion.keys) - 1)
         e = eased(s[t], motion.keys[k].ease or motion.ease)
         offset = (1.0 - e) * motion.keys[k].translate + e * motion.keys[k2].translate
-        m = np.eye(4)
-        m[:3, :3] = _rotation(_slerp(quats[k], quats[k2], e))
-        m[:3, 3] = pivot + offset - m[:3, :3] @ pivot
-        out[t] = m
+        turn = np.eye(4)
+        turn[:3, :3] = _rotation(_slerp(quats[k], quats[k2], e))
+        out[t] = translation(pivot + offset) @ turn @ translation(-pivot)
     return out
 
 
