@@ -336,7 +336,9 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
 
     Folders (``scene_dirs``, and every sub-folder of each of ``scene_roots`` that a plugin opens)
     are opened through the plugins' ``open_scene`` hook, added to ``store`` and join the ``real``
-    tier (unless the scene declares another in ``params["tier"]``).
+    tier (unless the scene declares another in ``params["tier"]``). The suite is the default of
+    ``scenes`` unless ``scene_dirs`` are named: a scene root's folders join the suite (the two
+    tiers of a default run), a ``--scene-dir`` run scores its folders alone.
 
     Parameters
     ----------
@@ -356,7 +358,7 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
     from harness.specs import TASKS, SceneSpec
 
     tasks = set(tasks or TASKS)
-    if scenes is None and not scene_dirs and not scene_roots:
+    if scenes is None and not scene_dirs:
         specs = [s for _, s in sorted(registry.scenes.items()) if s.suite and s.tasks & tasks]
     else:
         specs = [registry.get("scene", n) for n in (scenes or [])]

@@ -118,6 +118,12 @@ def test_scene_roots_join_the_real_tier_at_the_profile_size(room, tmp_path):
     assert [(s.name, s.tier) for s in specs] == [("synthetic-moving", "procedural"), ("room", "real")]
     assert specs[1].resolution == (32, 18) and store.resolution(store.scene("room")) == (32, 18)
     assert specs[1].frames == 32 and len(notes) == 1 and "notes" in notes[0] and "\n" not in notes[0]
+    # named no scenes: the root's folders join the suite (both tiers); a --scene-dir run is its folders alone
+    both = scene_selection(reg, store, None, tasks=["denoise"], scene_roots=[root])
+    suite = sorted(n for n, s in reg.scenes.items() if s.suite and "denoise" in s.tasks)
+    assert [s.name for s in both] == [*suite, "room"] and {s.tier for s in both[:-1]} == {"procedural"}
+    alone = scene_selection(reg, store, None, [root / "room"], tasks=["denoise"])
+    assert [s.name for s in alone] == ["room"]
 
 
 def test_the_default_root_is_denoise_scenes_else_the_shared_folder(monkeypatch, tmp_path, capsys):
