@@ -76,6 +76,7 @@ def _weights_file(tmp_path, model, name="w.npz"):
     return save_weights(model_arrays(model), {"seed": -1}, tmp_path / name)
 
 
+@pytest.mark.slow
 def test_inference_equals_the_training_graph(registry, tmp_path):
     model = _random_model(3, seed=1)
     path = _weights_file(tmp_path, model)
@@ -93,6 +94,7 @@ def test_inference_equals_the_training_graph(registry, tmp_path):
     assert not np.allclose(outs[-1], frames[-1]["color"], atol=1e-3), "the network changes the image"
 
 
+@pytest.mark.slow
 def test_same_seed_gives_the_same_weights_and_another_seed_others(tmp_path):
     a = train(seed=3, output=tmp_path / "a.npz", quick=True)
     b = train(seed=3, output=tmp_path / "b.npz", quick=True)
@@ -105,6 +107,7 @@ def test_same_seed_gives_the_same_weights_and_another_seed_others(tmp_path):
     assert ma["config"]["steps"] == QUICK.steps and ma["threads"] == 1
 
 
+@pytest.mark.slow
 def test_training_scenes_are_never_benchmark_scenes(registry):
     meta = load_weights(shipped_weights(DEFAULT_LAYERS))[1]
     seeds = sum((meta["scene_seeds"][k] for k in ("train", "validation", "test")), [])
@@ -135,6 +138,7 @@ def test_shipped_weights_match_their_recorded_hashes(registry):
     assert filt.meta["arrays_sha256"] == SHIPPED[DEFAULT_LAYERS]["arrays"]
 
 
+@pytest.mark.slow
 def test_shipped_weights_beat_the_aliased_input_on_held_out_training_scenes():
     for layers in SHIPPED:
         arrays, meta = load_weights(shipped_weights(layers))
