@@ -16,17 +16,15 @@ opened from the folder the run names in its manifest).
 
 from __future__ import annotations
 
-import argparse
 import json
 import warnings
 from pathlib import Path
 
 import numpy as np
+from common import ROOT, parser, run
 
 from harness.report import outputs as stored
 from harness.report import pictures
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def strip(run: Path, task: str, scene: str) -> tuple[np.ndarray, list[str]] | None:
@@ -72,16 +70,16 @@ def motion_shares(run: Path, scene_name: str) -> list[tuple[int, float, float]]:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", type=Path, nargs="+")
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "images")
-    parser.add_argument("--motion", action="store_true")
-    args = parser.parse_args()
-    for run in args.runs:
-        for task_dir in sorted((run / stored.FOLDER).glob("*")):
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("runs", type=Path, nargs="+")
+    ap.add_argument("--out", type=Path, default=ROOT / "docs" / "images")
+    ap.add_argument("--motion", action="store_true")
+    args = ap.parse_args(argv)
+    for folder in args.runs:
+        for task_dir in sorted((folder / stored.FOLDER).glob("*")):
             for scene_dir in sorted(task_dir.glob("*")):
-                made = strip(run, task_dir.name, scene_dir.name)
+                made = strip(folder, task_dir.name, scene_dir.name)
                 if made is None:
                     continue
                 image, labels = made
@@ -89,9 +87,10 @@ def main() -> None:
                 pictures.write_display(path, image)
                 print(f"{path}: rows {', '.join(labels)}; {image.shape[1]}x{image.shape[0]}")
                 if args.motion:
-                    for t, share, median in motion_shares(run, scene_dir.name):
+                    for t, share, median in motion_shares(folder, scene_dir.name):
                         print(f"  frame {t}: {100 * share:.1f}% of pixels move, median {median:.2f} px")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)
