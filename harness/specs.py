@@ -83,8 +83,10 @@ class FilterSpec:
         Conformance checks (``harness.testing.checks`` function names) this filter knowingly
         fails, each with the reason; they run as strict expected failures.
     trainer : callable, optional
-        For learned filters: ``trainer(seed=0, output=None, quick=False) -> pathlib.Path``
-        trains the model and writes its weights (``denoise-bench train NAME``).
+        For learned filters: ``trainer(seed=0, output=None, quick=False, **options) -> pathlib.Path``
+        trains the model and writes its weights (``denoise-bench train NAME [-o KEY=VALUE ...]``);
+        ``options`` are the trainer's own (a trainer without them need not accept any; an unknown
+        one is a ``ValueError``).
     stage_timing : bool
         True if the filter object sets ``stage_ms`` (dict of stage name to milliseconds of the
         last call; see :class:`harness.protocols.StageTimedFilter`); the harness stores it with

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import sys
 import time
@@ -584,6 +585,10 @@ def cmd_train(registry, args) -> int:
     spec = registry.get("filter", args.filter)
     if spec.trainer is None:
         raise ValueError(f"filter {spec.name!r} is not trainable")
-    path = spec.trainer(seed=args.seed, output=args.output, quick=args.quick)
-    print(f"{spec.name}: weights written to {path}")
+    options = dict(args.option)
+    keywords = inspect.signature(spec.trainer).parameters.values()
+    if options and not any(p.kind is p.VAR_KEYWORD for p in keywords):
+        raise ValueError(f"filter {spec.name!r}: its trainer takes no options (got {sorted(options)})")
+    path = spec.trainer(seed=args.seed, output=args.output, quick=args.quick, **options)
+    print(f"{spec.name}: wrote {path}")
     return 0
