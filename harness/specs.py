@@ -20,6 +20,8 @@ METRIC_INPUTS = ("reference_variance", "mask")
 #: the benchmark tasks: ``denoise`` (1-spp path-traced input, converged path-traced reference) and
 #: ``antialias`` (one jittered shading sample per pixel, supersampled reference)
 TASKS = ("denoise", "antialias")
+#: scene tiers: content built by this project, and third-party content (DESIGN.md, "Tiers and guides")
+TIERS = ("procedural", "real")
 
 
 def _check_tasks(owner: str, tasks) -> frozenset[str]:
@@ -380,6 +382,10 @@ class SceneSpec:
     channels : iterable of str, optional
         The channels the scene can give where it limits its renderer (captured frames); None
         means whatever the renderer provides. A filter needing another is skipped with a reason.
+    tier : {"procedural", "real"}
+        ``procedural``: content built by this project (the built-in scenes); ``real``: third-party
+        content (Mitsuba scene folders, captures a user names). Leaderboards rank each tier on its
+        own (:data:`TIERS`).
     """
 
     name: str
@@ -393,8 +399,11 @@ class SceneSpec:
     description: str = ""
     tasks: frozenset = frozenset({"denoise"})
     channels: frozenset | None = None
+    tier: str = "procedural"
 
     def __post_init__(self):
+        if self.tier not in TIERS:
+            raise ValueError(f"scene {self.name!r}: tier must be one of {TIERS}, got {self.tier!r}")
         object.__setattr__(self, "tags", frozenset(self.tags))
         if self.channels is not None:
             object.__setattr__(self, "channels", _check_channels(f"scene {self.name!r}", self.channels))
@@ -411,4 +420,5 @@ class SceneSpec:
             "kind": self.kind,
             "suite": self.suite,
             "tasks": sorted(self.tasks),
+            "tier": self.tier,
         }

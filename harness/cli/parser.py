@@ -299,7 +299,12 @@ def _add_selection(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenes", type=names, default=None, metavar="NAMES",
                    help="scenes to use, comma-separated (default: the built-in suite)")
     p.add_argument("--scene-dir", action="append", default=[], metavar="PATH",
-                   help="also use the scene stored in this folder (e.g. a Mitsuba XML scene); repeatable")
+                   help="also use the scene stored in this folder (e.g. a Mitsuba XML scene): tier real; repeatable")
+    p.add_argument("--scene-root", action="append", default=[], metavar="PATH",
+                   help="also use every scene folder inside this folder (tier real; a run naming no scenes uses "
+                        "$DENOISE_SCENES, else ../shared/scenes where present); repeatable")
+    p.add_argument("--renderer-option", type=param, action="append", default=[], metavar="RENDERER.NAME=VALUE",
+                   help="set a renderer option (JSON value), e.g. pathtracer.jitter=true; repeatable")
     p.add_argument("--renderer", default=None, help="renderer for every scene (default: the preferred one per "
                                                     "scene kind and task)")
     p.add_argument("--resolution", type=resolution, default=None, metavar="WxH",
