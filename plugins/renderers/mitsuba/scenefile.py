@@ -1,0 +1,142 @@
+"""The Mitsuba scene file of a harness scene, adapted so that Mitsuba 3 loads it.
+
+A scene built by the Mitsuba scene plugin records its folder in ``scene.source`` and the XML's
+file name in ``scene.params["file"]`` (``scene.params["format"] == "mitsuba"``). Mitsuba 3 reads
+0.6 files itself (it upgrades camelCase names); what it refuses is adapted here, each change
+reported once as a warning:
+
+* ``<integrator>`` and ``<sensor>`` are removed (the renderer brings its own, per frame);
+* ``roughdiffuse`` (Oren-Nayar, not in Mitsuba 3) becomes ``diffuse``;
+* texture filters other than ``nearest``/``bilinear`` (0.6's ``trilinear``, ``ewa``) become
+  ``bilinear``;
+* properties Mitsuba 3 reports as unreferenced (``extEta`` of ``roughconductor``, ...) are
+  dropped, one load attempt per error message.
+
+Every top-level ``<shape>`` without an ``id`` gets ``harness_shape_<k>`` (``k``: its position
+among the top-level shapes), so that shapes can be found by name in the loaded scene and in
+``mi.traverse``.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+OWNER = "renderer 'mitsuba'"
+#: prefix of the ids given to unnamed top-level shapes
+SHAPE_ID = "harness_shape_"
+#: load attempts (each drops the properties one error names)
+ATTEMPTS = 50
+
+
+class MitsubaAdaptation(UserWarning):
+    """A part of a scene file was changed so that Mitsuba 3 loads it."""
+
+
+def scene_file(scene) -> Path:
+    """The Mitsuba XML a harness scene was loaded from.
+
+    Raises
+    ------
+    ValueError
+        The scene does not come from a Mitsuba XML (one line naming it), or the file is gone.
+    """
+    params = getattr(scene, "params", None) or {}
+    if scene.kind != "mesh" or params.get("format") != "mitsuba" or not params.get("file"):
+        raise ValueError(f"{OWNER}: renders scenes loaded from a Mitsuba XML file (--scene-dir FOLDER, or the "
+                         f"classroom / living-room / sponza scenes); {scene.name!r} is not one")
+    path = Path(scene.source) / str(params["file"])
+    if not path.is_file():
+        raise ValueError(f"{OWNER}: the scene file of {scene.name!r} is missing: {path}")
+    return path.resolve()
+
+
+def adapted_xml(path: Path) -> tuple[ET.Element, list[str]]:
+    """The scene file as Mitsuba 3 takes it, and the ids of its top-level shapes in file order."""
+    root = ET.parse(path).getroot()
+    for tag in ("integrator", "sensor"):
+        for node in root.findall(tag):
+            root.remove(node)
+    notes = []
+    for bsdf in root.iter("bsdf"):
+        if bsdf.get("type") == "roughdiffuse":
+            notes.append("roughdiffuse (Oren-Nayar) is not in Mitsuba 3: rendered as diffuse")
+            bsdf.set("type", "diffuse")
+            for prop in [p for p in bsdf if _snake(p.get("name") or "") in ("alpha", "distribution")]:
+                bsdf.remove(prop)
+    for texture in root.iter("texture"):
+        for prop in texture:
+            if _snake(prop.get("name") or "") == "filter_type" and prop.get("value") not in ("nearest", "bilinear"):
+                notes.append(f"texture filter {prop.get('value')!r} is not in Mitsuba 3: bilinear")
+                prop.set("value", "bilinear")
+    taken = {node.get("id") for node in root.iter() if node.get("id")}
+    ids = []
+    for k, node in enumerate(root.findall("shape")):
+        if not node.get("id"):
+            name = f"{SHAPE_ID}{k}"
+            while name in taken:
+                name += "_"
+            node.set("id", name)
+            taken.add(name)
+        ids.append(node.get("id"))
+    for note in dict.fromkeys(notes):
+        warnings.warn(f"{OWNER}: {path.name}: {note}", MitsubaAdaptation, stacklevel=3)
+    return root, ids
+
+
+def load(mi, path: Path):
+    """Load the adapted scene file with the current Mitsuba variant.
+
+    Returns
+    -------
+    (mitsuba.Scene, list of str)
+        The scene and its top-level shape ids in file order.
+    """
+    root, ids = adapted_xml(path)
+    resolver = mi.file_resolver()
+    saved = [str(p) for p in resolver]
+    resolver.prepend(str(path.parent))
+    try:
+        for _ in range(ATTEMPTS):
+            try:
+                return mi.load_string(ET.tostring(root, encoding="unicode"), optimize=False), ids
+            except RuntimeError as exc:
+                dropped = _drop_unreferenced(root, str(exc))
+                if not dropped:
+                    raise ValueError(f"{OWNER}: Mitsuba 3 cannot load {path}: {_first_line(exc)}") from exc
+                warnings.warn(f"{OWNER}: {path.name}: dropped {dropped} (not used by Mitsuba 3)",
+                              MitsubaAdaptation, stacklevel=2)
+    finally:
+        resolver.clear()
+        for folder in saved:
+            resolver.append(folder)
+    raise ValueError(f"{OWNER}: Mitsuba 3 cannot load {path} after {ATTEMPTS} adaptations")
+
+
+def _snake(name: str) -> str:
+    return re.sub(r"(?<!^)(?=[A-Z])", "_", name).lower()
+
+
+def _first_line(exc: Exception) -> str:
+    text = str(exc).strip().splitlines()
+    return text[-1] if text else type(exc).__name__
+
+
+def _drop_unreferenced(root: ET.Element, message: str) -> str:
+    """Remove the properties a load error names as unreferenced; what was dropped, or ''."""
+    plugin = re.search(r'in (\w+) plugin of type "(\w+)"', message)
+    names = set(re.findall(r'- \w+ "(\w+)"', message))
+    if not plugin or not names:
+        return ""
+    tag, kind = plugin.groups()
+    removed = []
+    for node in root.iter(tag):
+        if node.get("type") != kind:
+            continue
+        for prop in list(node):
+            if _snake(prop.get("name") or "") in names:
+                node.remove(prop)
+                removed.append(prop.get("name"))
+    return f"{sorted(set(removed))} of {tag} {kind!r}" if removed else ""
