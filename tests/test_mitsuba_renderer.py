@@ -184,6 +184,12 @@ def test_bad_variant_is_an_error():
         MitsubaRenderer(variant="opengl")
 
 
+def test_variant_from_the_environment(monkeypatch):
+    monkeypatch.setenv("DENOISE_MITSUBA_VARIANT", "scalar")
+    renderer = MitsubaRenderer()
+    assert renderer.variant == "scalar_rgb" and renderer.settings()["variant"] == "scalar_rgb"
+
+
 def test_probe_survives_a_broken_llvm(tmp_path):
     broken = tmp_path / "libLLVM-99.so"
     broken.write_bytes(b"not a library")

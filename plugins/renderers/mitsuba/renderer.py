@@ -11,6 +11,7 @@ per seed and frame. Sums are float64.
 from __future__ import annotations
 
 import importlib.metadata
+import os
 import threading
 from collections import OrderedDict
 
@@ -24,6 +25,8 @@ from .streams import COLOR, VARIANCE, base_key
 from .variants import active, choose
 
 OWNER = "renderer 'mitsuba'"
+#: environment variable choosing the variant when the factory is given none
+VARIANT_VARIABLE = "DENOISE_MITSUBA_VARIANT"
 GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "emission")
 
 
@@ -39,7 +42,7 @@ class LoadedScene:
     """
 
     def __init__(self, mi, scene: Scene, max_depth: int, rr_depth: int):
-        mi_scene, shape_ids = scenefile.load(mi, scenefile.scene_file(scene))
+        mi_scene, shape_ids = scenefile.load(mi, scenefile.scene_file(scene), scene.params.get("sunsky"))
         shapes = {s.id(): s for s in mi_scene.shapes()}
         matched = match_objects(shapes, shape_ids, scene.objects)
         ids = object_ids(mi_scene.shapes(), matched, len(scene.objects))
@@ -123,10 +126,12 @@ class MitsubaRenderer:
 
     Parameters
     ----------
-    variant : {"auto", "cuda", "llvm", "scalar"}
+    variant : {"auto", "cuda", "llvm", "scalar"} or None
         Mitsuba variant (:func:`.variants.choose`); ``auto`` takes ``cuda_ad_rgb`` on a working
-        GPU, else ``llvm_ad_rgb`` where an LLVM works, else ``scalar_rgb`` with a warning. The
-        variant used is in :meth:`settings` (so in cache keys and the results).
+        GPU, else ``llvm_ad_rgb`` where an LLVM works, else ``scalar_rgb`` with a warning. None
+        (the default) reads :data:`VARIANT_VARIABLE` from the environment, ``auto`` without it (the
+        command line's way to choose). The variant used is in :meth:`settings` (so in cache keys
+        and the results).
     max_depth : int or None
         Longest path in segments (1: emitters seen directly, 2: direct lighting), Mitsuba's
         ``path`` integrator's meaning; None takes the scene's ``max_depth`` (as the path tracer).
@@ -138,7 +143,7 @@ class MitsubaRenderer:
         0 (unknown), as the path tracer does.
     """
 
-    def __init__(self, variant: str = "auto", max_depth: int | None = None, rr_depth: int = 5,
+    def __init__(self, variant: str | None = None, max_depth: int | None = None, rr_depth: int = 5,
                  variance_spp: int = 8):
         if max_depth is not None and int(max_depth) < 1:
             raise ValueError(f"{OWNER}: max_depth must be >= 1, got {max_depth}")
@@ -146,7 +151,7 @@ class MitsubaRenderer:
             raise ValueError(f"{OWNER}: rr_depth must be >= 1, got {rr_depth}")
         if int(variance_spp) < 0:
             raise ValueError(f"{OWNER}: variance_spp must be >= 0, got {variance_spp}")
-        self.variant = choose(variant)
+        self.variant = choose(variant or os.environ.get(VARIANT_VARIABLE) or "auto")
         self.max_depth = None if max_depth is None else int(max_depth)
         self.rr_depth = int(rr_depth)
         self.variance_spp = int(variance_spp)

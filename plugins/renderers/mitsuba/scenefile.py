@@ -7,6 +7,11 @@ reported once as a warning:
 
 * ``<integrator>`` and ``<sensor>`` are removed (the renderer brings its own, per frame);
 * ``roughdiffuse`` (Oren-Nayar, not in Mitsuba 3) becomes ``diffuse``;
+* ``phong`` (not in Mitsuba 3) becomes the ``roughplastic`` the scene plugin approximates it by
+  (Beckmann ``alpha = sqrt(2 / (exponent + 2))``, specular reflectance 0.2 unless given);
+* a 0.6 file's ``sun``/``sky``/``sunsky`` emitter (a date-and-place model Mitsuba 3 lacks) becomes
+  Mitsuba 3's ``sunsky`` with the parameters the scene plugin read (``scene.params["sunsky"]``,
+  Mitsuba 3's semantics), the same light the path tracer renders;
 * texture filters other than ``nearest``/``bilinear`` (0.6's ``trilinear``, ``ewa``) become
   ``bilinear``;
 * properties Mitsuba 3 reports as unreferenced (``extEta`` of ``roughconductor``, ...) are
@@ -19,16 +24,21 @@ among the top-level shapes), so that shapes can be found by name in the loaded s
 
 from __future__ import annotations
 
+import math
 import re
 import warnings
 import xml.etree.ElementTree as ET
 from pathlib import Path
+
+import numpy as np
 
 OWNER = "renderer 'mitsuba'"
 #: prefix of the ids given to unnamed top-level shapes
 SHAPE_ID = "harness_shape_"
 #: load attempts (each drops the properties one error names)
 ATTEMPTS = 50
+#: Mitsuba 0.6's sun and sky emitters
+SUN_SKY = ("sun", "sky", "sunsky")
 
 
 class MitsubaAdaptation(UserWarning):
@@ -53,13 +63,40 @@ def scene_file(scene) -> Path:
     return path.resolve()
 
 
-def adapted_xml(path: Path) -> tuple[ET.Element, list[str]]:
-    """The scene file as Mitsuba 3 takes it, and the ids of its top-level shapes in file order."""
+def adapted_xml(path: Path, sunsky: dict | None = None) -> tuple[ET.Element, list[str]]:
+    """The scene file as Mitsuba 3 takes it, and the ids of its top-level shapes in file order.
+
+    Parameters
+    ----------
+    path : Path
+    sunsky : dict, optional
+        ``scene.params["sunsky"]`` of the scene plugin (Mitsuba 3 ``sunsky`` parameters).
+    """
     root = ET.parse(path).getroot()
+    old = _version(root) < (3,)
     for tag in ("integrator", "sensor"):
         for node in root.findall(tag):
             root.remove(node)
     notes = []
+    for bsdf in root.iter("bsdf"):
+        if bsdf.get("type") == "phong":
+            exponent = next((float(p.get("value")) for p in bsdf if _snake(p.get("name") or "") == "exponent"), 30.0)
+            for prop in [p for p in bsdf if _snake(p.get("name") or "") == "exponent"]:
+                bsdf.remove(prop)
+            bsdf.set("type", "roughplastic")
+            if not any(_snake(p.get("name") or "") == "specular_reflectance" for p in bsdf):
+                ET.SubElement(bsdf, "float", name="specularReflectance" if old else "specular_reflectance",
+                              value="0.2")
+            ET.SubElement(bsdf, "float", name="alpha", value=repr(math.sqrt(2.0 / (exponent + 2.0))))
+            ET.SubElement(bsdf, "string", name="distribution", value="beckmann")
+            notes.append("phong is not in Mitsuba 3: rendered as the scene plugin's roughplastic approximation")
+    if old:
+        for node in [n for n in root.findall("emitter") if n.get("type") in SUN_SKY]:
+            root.remove(node)
+            notes.append(f"Mitsuba 0.6's {node.get('type')} emitter: Mitsuba 3's sunsky of the parameters the scene "
+                         "plugin read")
+        if sunsky is not None and any(n.startswith("Mitsuba 0.6's") for n in notes):
+            root.append(_sunsky(sunsky))
     for bsdf in root.iter("bsdf"):
         if bsdf.get("type") == "roughdiffuse":
             notes.append("roughdiffuse (Oren-Nayar) is not in Mitsuba 3: rendered as diffuse")
@@ -86,15 +123,15 @@ def adapted_xml(path: Path) -> tuple[ET.Element, list[str]]:
     return root, ids
 
 
-def load(mi, path: Path):
-    """Load the adapted scene file with the current Mitsuba variant.
+def load(mi, path: Path, sunsky: dict | None = None):
+    """Load the adapted scene file (:func:`adapted_xml`) with the current Mitsuba variant.
 
     Returns
     -------
     (mitsuba.Scene, list of str)
         The scene and its top-level shape ids in file order.
     """
-    root, ids = adapted_xml(path)
+    root, ids = adapted_xml(path, sunsky)
     resolver = mi.file_resolver()
     saved = [str(p) for p in resolver]
     resolver.prepend(str(path.parent))
@@ -113,6 +150,27 @@ def load(mi, path: Path):
         for folder in saved:
             resolver.append(folder)
     raise ValueError(f"{OWNER}: Mitsuba 3 cannot load {path} after {ATTEMPTS} adaptations")
+
+
+def _version(root: ET.Element) -> tuple[int, ...]:
+    return tuple(int(p) for p in re.findall(r"\d+", root.get("version", "0.6.0"))) or (0, 6, 0)
+
+
+def _sunsky(record: dict) -> ET.Element:
+    """Mitsuba 3's ``sunsky`` element of a ``scene.params["sunsky"]`` record."""
+    node = ET.Element("emitter", type="sunsky")
+    x, y, z = (repr(float(v)) for v in record["sun_direction"])
+    ET.SubElement(node, "vector", name="sun_direction", x=x, y=y, z=z)
+    albedo = [float(v) for v in np.broadcast_to(record["albedo"], 3)]
+    ET.SubElement(node, "rgb", name="albedo", value=", ".join(map(repr, albedo)))
+    for name in ("turbidity", "sky_scale", "sun_scale", "sun_aperture"):
+        ET.SubElement(node, "float", name=name, value=repr(float(record[name])))
+    ET.SubElement(node, "boolean", name="complex_sun", value=str(bool(record["complex_sun"])).lower())
+    m = np.eye(4)
+    m[:3, :3] = np.asarray(record["to_world"], float)
+    transform = ET.SubElement(node, "transform", name="to_world")
+    ET.SubElement(transform, "matrix", value=" ".join(repr(float(v)) for v in m.ravel()))
+    return node
 
 
 def _snake(name: str) -> str:

@@ -1,0 +1,183 @@
+"""The ``mitsuba`` renderer against the ``pathtracer`` on the shared Mitsuba scenes: agreement and speed.
+
+Usage::
+
+    python benchmarks/bench_mitsuba.py agree [--scenes classroom living-room sponza]
+                                             [--width 160 --height 90 --spp 256 --seed 1]
+    python benchmarks/bench_mitsuba.py speed [--scenes sponza living-room] [--width 1280 --height 720]
+                                             [--spp 1] [--rounds 3] [--workers 1 4 16]
+
+``agree``: each scene as the Mitsuba scene plugin loads it, rendered by both renderers at the same
+resolution, ``spp``, seed and path settings (the scene's ``max_depth``, Russian roulette from depth
+5). First hits: the fraction of pixels where both see the same object, and there the largest
+position difference (relative to the scene's size) and the fraction of equal normals, depths and
+albedos. Radiance: the ratio mitsuba / pathtracer of the whole image's mean (r, g, b), and of the
+mean over each object's pixels, for the objects whose two means are converged (both standard
+errors, from the variance channels, below 1% of the mean): median, 5th and 95th percentiles, and
+the share of pixels in objects within 2%. The loader's approximations (what the path tracer renders
+differently from Mitsuba 3) are counted; they explain the outliers.
+
+``speed``: frames of ``spp`` samples at ``width`` x ``height`` rendered by both renderers in turn
+(one warm-up frame each, then ``rounds`` rounds alternating pathtracer and mitsuba, so both see the
+same machine load), wall clock and process CPU time per frame (median), paths per second (wall),
+and the time of a 4096-spp reference frame projected from it. Then the ``paper`` profile's
+references of the scenes (one 1280x720 frame of 4096 spp for an XML scene) on 1 and on
+``--workers`` CPU workers of the same kind through Dask (references split into independent sample
+batches, so N workers divide the time by about N; the cluster's overhead is not included).
+
+Both renderers use the machine's cores (Numba's thread count; Dr.Jit's thread pool is set to the
+same). The third-party scenes are read from ``../shared/scenes`` next to the project root; a scene
+that is absent is skipped with a message.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT.parent / "shared" / "scenes"
+GBUFFER = ("position", "normal", "albedo", "depth", "object_id")
+REFERENCE_SPP = 4096
+
+
+def shared_scene(name: str):
+    """The scene plugin's scene of ``../shared/scenes/<name>``, or None (with a message) where absent."""
+    from plugins.scenes.mitsuba import load
+
+    folder = SCENES / name
+    if not (folder / "scene.xml").is_file():
+        print(f"skipping {name!r}: no scene folder {folder}")
+        return None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load(folder, name=name)
+
+
+def renderers():
+    from plugins.renderers.mitsuba import MitsubaRenderer
+    from plugins.renderers.pathtracer import PathTracer
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mitsuba = MitsubaRenderer()
+    return {"pathtracer": PathTracer(), "mitsuba": mitsuba}
+
+
+def agree(args) -> None:
+    both = renderers()
+    size = (args.width, args.height)
+    print(f"{args.width}x{args.height}, {args.spp} spp, seed {args.seed}, mitsuba variant {both['mitsuba'].variant}; "
+          "ratios mitsuba / pathtracer")
+    for name in args.scenes:
+        scene = shared_scene(name)
+        if scene is None:
+            continue
+        channels = set(GBUFFER) | {"variance"}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ours, theirs = (both[r].render(scene, 0, spp=args.spp, seed=args.seed, channels=channels,
+                                           resolution=size) for r in ("mitsuba", "pathtracer"))
+        print(f"{name}: {len(scene.params.get('approximations', []))} approximations of the path tracer's loader")
+        gbuffer_line(scene, ours, theirs)
+        radiance_lines(scene, ours, theirs)
+
+
+def gbuffer_line(scene, ours, theirs) -> None:
+    same = (ours["object_id"] == theirs["object_id"]) & (ours["object_id"] >= 0)
+    hits = ((ours["object_id"] >= 0) == (theirs["object_id"] >= 0)).mean()
+    points = np.concatenate([np.asarray(o.mesh.points) for o in scene.objects])
+    size = float(np.linalg.norm(points.max(0) - points.min(0)))
+    gap = np.linalg.norm(ours["position"][same] - theirs["position"][same], axis=-1) / size
+    equal = {}
+    for name in ("normal", "depth", "albedo"):
+        difference = np.abs(ours[name][same] - theirs[name][same]).reshape(same.sum(), -1).max(-1)
+        equal[name] = float(np.mean(difference <= 1e-3 * (size if name == "depth" else 1.0)))
+    print(f"  first hits: hit/miss agree {hits:.4f}, same object {same.mean():.4f} of pixels; there: position "
+          f"difference max {gap.max(initial=0):.2e} of the scene size, equal (1e-3) normal {equal['normal']:.4f} "
+          f"depth {equal['depth']:.4f} albedo {equal['albedo']:.4f}")
+
+
+def radiance_lines(scene, ours, theirs) -> None:
+    whole = ours["color"].mean(axis=(0, 1)) / np.maximum(theirs["color"].mean(axis=(0, 1)), 1e-12)
+    same = (ours["object_id"] == theirs["object_id"]) & (ours["object_id"] >= 0)
+    ratios, weights = [], []
+    for k in np.unique(ours["object_id"][same]):
+        region = same & (ours["object_id"] == k)
+        means = [f["color"][region].astype(np.float64).mean() for f in (ours, theirs)]
+        errors = [np.sqrt(f["variance"][region].astype(np.float64).mean(-1).sum()) / region.sum()
+                  for f in (ours, theirs)]
+        if min(means) <= 0 or max(e / m for e, m in zip(errors, means)) > 0.01:
+            continue
+        ratios.append(means[0] / means[1])
+        weights.append(int(region.sum()))
+    ratios, weights = np.array(ratios), np.array(weights)
+    within = float(weights[np.abs(ratios - 1) <= 0.02].sum() / max(weights.sum(), 1))
+    print(f"  radiance: whole image (r, g, b) {whole[0]:.4f} {whole[1]:.4f} {whole[2]:.4f}; {len(ratios)} converged "
+          f"objects ({weights.sum()} pixels): median {np.median(ratios) if len(ratios) else np.nan:.4f}, "
+          f"5-95% {np.percentile(ratios, 5) if len(ratios) else np.nan:.4f}-"
+          f"{np.percentile(ratios, 95) if len(ratios) else np.nan:.4f}, pixels in objects within 2%: {within:.3f}")
+
+
+def speed(args) -> None:
+    both = renderers()
+    size = (args.width, args.height)
+    paths = args.width * args.height * args.spp
+    print(f"{args.width}x{args.height}, {args.spp} spp per frame, {args.rounds} rounds alternating; mitsuba variant "
+          f"{both['mitsuba'].variant}")
+    for name in args.scenes:
+        scene = shared_scene(name)
+        if scene is None:
+            continue
+        times = {r: [] for r in both}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            for renderer in both.values():  # warm-up: loading, BVH, compilation
+                renderer.render(scene, 0, spp=1, seed=0, resolution=size)
+            for k in range(args.rounds):
+                for r, renderer in both.items():
+                    wall, cpu = time.perf_counter(), time.process_time()
+                    renderer.render(scene, 0, spp=args.spp, seed=k + 1, resolution=size)
+                    times[r].append((time.perf_counter() - wall, time.process_time() - cpu))
+        rates = {}
+        for r, samples in times.items():
+            wall = statistics.median(s[0] for s in samples)
+            cpu = statistics.median(s[1] for s in samples)
+            rates[r] = paths / wall
+            reference = wall / args.spp * REFERENCE_SPP * (1280 * 720) / (args.width * args.height)
+            print(f"{name:<12} {r:<10} {wall:7.2f} s wall {cpu:7.2f} s CPU per frame, {paths / wall / 1e6:6.3f} "
+                  f"Mpaths/s; a {REFERENCE_SPP}-spp 1280x720 reference frame: {reference / 3600:6.2f} h")
+        print(f"{name:<12} mitsuba / pathtracer paths per second: {rates['mitsuba'] / rates['pathtracer']:.2f}")
+        for r, rate in rates.items():
+            hours = 1280 * 720 * REFERENCE_SPP / rate / 3600
+            spread = ", ".join(f"{n} workers {hours / n:.2f} h" for n in args.workers)
+            print(f"  paper profile, {name} references (1 frame) by {r}: {hours:.2f} h on this machine; {spread}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    sub = parser.add_subparsers(dest="what", required=True)
+    a = sub.add_parser("agree")
+    a.add_argument("--scenes", nargs="+", default=["classroom", "living-room", "sponza"])
+    a.add_argument("--width", type=int, default=160)
+    a.add_argument("--height", type=int, default=90)
+    a.add_argument("--spp", type=int, default=256)
+    a.add_argument("--seed", type=int, default=1)
+    s = sub.add_parser("speed")
+    s.add_argument("--scenes", nargs="+", default=["sponza", "living-room"])
+    s.add_argument("--width", type=int, default=1280)
+    s.add_argument("--height", type=int, default=720)
+    s.add_argument("--spp", type=int, default=1)
+    s.add_argument("--rounds", type=int, default=3)
+    s.add_argument("--workers", type=int, nargs="+", default=[4, 16])
+    args = parser.parse_args()
+    agree(args) if args.what == "agree" else speed(args)
+
+
+if __name__ == "__main__":
+    main()
