@@ -5,7 +5,9 @@ Usage::
     python benchmarks/bench_mitsuba.py agree [--scenes classroom living-room sponza]
                                              [--width 160 --height 90 --spp 256 --seed 1]
     python benchmarks/bench_mitsuba.py speed [--scenes sponza living-room] [--width 1280 --height 720]
-                                             [--spp 1] [--rounds 3] [--workers 1 4 16]
+                                             [--spp 1] [--rounds 3] [--workers 4 16]
+    python benchmarks/bench_mitsuba.py sequence [--scenes living-room] [--frames 8] [--width 320 --height 180]
+                                                [--export FOLDER] [--reference-spp 64]
 
 ``agree``: each scene as the Mitsuba scene plugin loads it, rendered by both renderers at the same
 resolution, ``spp``, seed and path settings (the scene's ``max_depth``, Russian roulette from depth
@@ -24,6 +26,13 @@ and the time of a 4096-spp reference frame projected from it. Then the ``paper``
 references of the scenes (one 1280x720 frame of 4096 spp for an XML scene) on 1 and on
 ``--workers`` CPU workers of the same kind through Dask (references split into independent sample
 batches, so N workers divide the time by about N; the cluster's overhead is not included).
+
+``sequence``: the scene with a camera path of this script (a dolly of 1% of the scene's size per
+frame along the view and a pan of 1 degree per frame) rendered by the ``mitsuba`` renderer, 1 spp:
+per frame, the number of distinct object ids, the shapes of the file and the motion vectors'
+median and largest length. With ``--export FOLDER`` the sequence is also written as a capture
+(``harness.export``) with references of ``--reference-spp``, which ``denoise-bench run
+--scene-dir FOLDER/<scene>-orbit`` scores with every filter.
 
 Both renderers use the machine's cores (Numba's thread count; Dr.Jit's thread pool is set to the
 same). The third-party scenes are read from ``../shared/scenes`` next to the project root; a scene
@@ -159,6 +168,66 @@ def speed(args) -> None:
             print(f"  paper profile, {name} references (1 frame) by {r}: {hours:.2f} h on this machine; {spread}")
 
 
+def camera_path(scene, frames: int):
+    """The first view dollied along its axis (1% of the scene size per frame), panned 1 degree per frame."""
+    from harness import CameraPath
+
+    cam = scene.camera
+    points = np.concatenate([np.asarray(o.mesh.points) for o in scene.objects])
+    step = 0.01 * float(np.linalg.norm(points.max(0) - points.min(0)))
+    right, up, forward = cam.basis(0)
+    eyes, targets = [], []
+    for k in range(frames):
+        turn = np.radians(k)
+        view = np.cos(turn) * forward + np.sin(turn) * right
+        eye = cam.eye(0) + k * step * forward
+        eyes.append(eye)
+        targets.append(eye + view)
+    return CameraPath(positions=eyes, targets=targets, up=tuple(up), fov=cam.fov, near=cam.near, far=cam.far)
+
+
+def sequence(args) -> None:
+    import dataclasses
+
+    from harness import load_plugins
+    from harness.cache import Cache
+    from harness.export import export_scene
+    from harness.renders import RenderStore
+    from harness.specs import SceneSpec
+
+    mitsuba = renderers()["mitsuba"]
+    size = (args.width, args.height)
+    channels = {"albedo", "normal", "depth", "position", "object_id", "motion", "emission", "variance"}
+    for name in args.scenes:
+        scene = shared_scene(name)
+        if scene is None:
+            continue
+        scene = dataclasses.replace(scene, name=f"{name}-orbit", camera=camera_path(scene, args.frames),
+                                    frame_count=args.frames, resolution=size)
+        shapes = len(mitsuba.loaded(scene).engine.scene.shapes())
+        print(f"{scene.name}: {args.frames} frames at {args.width}x{args.height}, variant {mitsuba.variant}, "
+              f"{shapes} shapes in the file, {len(scene.objects)} scene objects")
+        for t in range(args.frames):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                frame = mitsuba.render(scene, t, spp=1, seed=0, channels=channels)
+            hit = frame["object_id"] >= 0
+            length = np.linalg.norm(frame["motion"], axis=-1)
+            print(f"  frame {t}: {len(np.unique(frame['object_id'][hit]))} distinct object ids on {hit.mean():.2f} of "
+                  f"the pixels, motion length median {np.median(length):.2f} max {length.max():.2f} px")
+        if args.export is not None:
+            registry = load_plugins()
+            store = RenderStore(registry, Cache(), resolution=size)
+            store.add_scene(scene)
+            spec = SceneSpec(name=scene.name, version="orbit", factory=lambda s=scene: s, tags=scene.tags,
+                             frames=scene.frame_count, resolution=size, kind="mesh", suite=False)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                sidecar = export_scene(registry, store, spec, args.export / scene.name, renderer="mitsuba",
+                                       reference_spp=args.reference_spp)
+            print(f"  written to {sidecar.parent}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="what", required=True)
@@ -175,8 +244,15 @@ def main() -> None:
     s.add_argument("--spp", type=int, default=1)
     s.add_argument("--rounds", type=int, default=3)
     s.add_argument("--workers", type=int, nargs="+", default=[4, 16])
+    q = sub.add_parser("sequence")
+    q.add_argument("--scenes", nargs="+", default=["living-room"])
+    q.add_argument("--frames", type=int, default=8)
+    q.add_argument("--width", type=int, default=320)
+    q.add_argument("--height", type=int, default=180)
+    q.add_argument("--export", type=Path, default=None)
+    q.add_argument("--reference-spp", type=int, default=64)
     args = parser.parse_args()
-    agree(args) if args.what == "agree" else speed(args)
+    {"agree": agree, "speed": speed, "sequence": sequence}[args.what](args)
 
 
 if __name__ == "__main__":

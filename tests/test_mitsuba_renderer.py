@@ -55,6 +55,9 @@ BOX_XML = """<scene version="3.0.0">
     <transform name="to_world"><scale value="0.3"/><rotate y="1" angle="25"/><translate x="0.3" y="-0.7" z="-0.2"/>
     </transform><ref id="white"/>
   </shape>
+  <shape type="obj" id="panel">
+    <string name="filename" value="panel.obj"/><ref id="green"/>
+  </shape>
   <sensor type="perspective">
     <float name="fov" value="50"/>
     <transform name="to_world"><lookat origin="0, 0, 3.4" target="0, 0, 0" up="0, 1, 0"/></transform>
@@ -64,10 +67,23 @@ BOX_XML = """<scene version="3.0.0">
 """
 
 
+# a square on the back wall; its last vertex is used by no face (Mitsuba's own bounding box of the
+# mesh holds it, the scene plugin's mesh does not)
+PANEL_OBJ = """v -0.6 0.0 -0.99
+v -0.2 0.0 -0.99
+v -0.2 0.4 -0.99
+v -0.6 0.4 -0.99
+v 5.0 5.0 5.0
+f 1 2 3
+f 1 3 4
+"""
+
+
 def write_box_scene(folder):
-    """Write the diffuse test box (``scene.xml``) into ``folder`` and return the folder."""
+    """Write the diffuse test box (``scene.xml``, ``panel.obj``) into ``folder`` and return the folder."""
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "scene.xml").write_text(BOX_XML)
+    (folder / "panel.obj").write_text(PANEL_OBJ)
     return folder
 
 
@@ -131,8 +147,8 @@ def test_scalar_frame_channels_and_conventions(box, scalar):
     np.testing.assert_allclose(np.linalg.norm(frame["normal"][hit], axis=-1), 1.0, atol=1e-5)
     assert np.isinf(frame["depth"][~hit]).all() and (frame["normal"][~hit] == 0).all()
     ids = {box.objects[k].name for k in np.unique(frame["object_id"][hit])}
-    assert ids == {"floor", "ceiling", "back", "left", "right", "lamp"} | {o.name for o in box.objects
-                                                                         if o.name.startswith("shape")}
+    assert ids == {"floor", "ceiling", "back", "left", "right", "lamp", "panel"} | {
+        o.name for o in box.objects if o.name.startswith("shape")}
     red = frame["object_id"] == [o.name for o in box.objects].index("left")
     np.testing.assert_allclose(frame["albedo"][red], np.broadcast_to(WALLS["red"], frame["albedo"][red].shape),
                                rtol=1e-5)

@@ -1,6 +1,6 @@
 """The ``mitsuba`` and ``pathtracer`` renderers agree on the same scene file.
 
-The diffuse box of ``tests/test_mitsuba_renderer.py`` (walls, a cube, an area lamp), loaded
+The diffuse box of ``tests/test_mitsuba_renderer.py`` (walls, a cube, a panel, an area lamp), loaded
 once by the Mitsuba scene plugin and rendered by both: the first hits are the same surfaces at the
 same points (the G-buffers are equal where both see the same object), and the converged mean
 radiance over each object's pixels agrees within 2% (each mean's standard error, from the

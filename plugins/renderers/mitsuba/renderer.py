@@ -193,12 +193,13 @@ class MitsubaRenderer:
         if w < 1 or h < 1:
             raise ValueError(f"{OWNER}: resolution must be positive, got {(w, h)}")
         key = (scene.content_hash(), frame_index, w, h)
-        if key not in self._setups:
-            self._setups[key] = FrameSetup(scene, frame_index, w, h, self.loaded(scene))
-            while len(self._setups) > 2:
-                self._setups.popitem(last=False)
-        self._setups.move_to_end(key)
-        return self._setups[key]
+        with self._lock:
+            if key not in self._setups:
+                self._setups[key] = FrameSetup(scene, frame_index, w, h, self.loaded(scene))
+                while len(self._setups) > 2:
+                    self._setups.popitem(last=False)
+            self._setups.move_to_end(key)
+            return self._setups[key]
 
     def add_samples(self, setup: FrameSetup, state: PixelSums, counts: np.ndarray, seed: int, *,
                     purpose: int = COLOR, squares: bool = True) -> None:

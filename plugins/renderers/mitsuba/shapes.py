@@ -5,7 +5,8 @@ read, in file order (then one sphere per ``point`` emitter, which Mitsuba render
 light and not as a shape). So the file's shapes and the scene's objects are walked together: a
 shape is the next object when their bounding boxes agree (the plugin bakes ``toWorld`` into the
 points; a tolerance of 2% of the object's diagonal covers the area-preserving scale of its
-tessellated spheres); a shape the plugin skipped matches no object. The object id of a pixel is
+tessellated spheres; a mesh's box is that of the vertices its faces use); a shape the plugin skipped
+matches no object. The object id of a pixel is
 its object's index in ``scene.objects`` (so :meth:`harness.Scene.motion` moves it), and shapes
 without an object get ids after those, one each: every shape has a distinct id.
 
@@ -45,14 +46,26 @@ def match_objects(shapes: dict, shape_ids: list[str], objects: list) -> dict[str
         shape = shapes.get(sid)
         if shape is None:
             continue
-        box = shape.bbox()
-        lo, hi = np.array(box.min, np.float64).ravel(), np.array(box.max, np.float64).ravel()
+        lo, hi = shape_box(shape)
         if at < len(objects) and boxes[at] is not None and _same_box(boxes[at], lo, hi, floor):
             out[sid] = at
             at += 1
         else:
             out[sid] = -1
     return out
+
+
+def shape_box(shape) -> tuple[np.ndarray, np.ndarray]:
+    """A shape's world bounding box: of the vertices its faces use, for a mesh (Mitsuba's own box of
+    an OBJ mesh also holds vertices no face uses), else ``shape.bbox()``."""
+    if shape.is_mesh():
+        faces = np.array(shape.faces_buffer(), np.int64).ravel()
+        points = np.array(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3)
+        if faces.size:
+            used = points[np.unique(faces)]
+            return used.min(0), used.max(0)
+    box = shape.bbox()
+    return np.array(box.min, np.float64).ravel(), np.array(box.max, np.float64).ravel()
 
 
 def object_ids(shapes: list, matched: dict[str, int], count: int) -> dict[str, int]:
