@@ -5,7 +5,8 @@ renderer name, version and settings, frame, spp, seed, channels, resolution), so
 input misses instead of returning stale data. Every write goes to a temporary file in the same
 folder and is renamed into place, so an interrupted run never leaves a half-written entry; an
 entry that cannot be read anyway (a truncated or altered file) is a miss: it is named in a
-warning, removed and rendered again. Temporary files left by killed processes are removed by
+warning, removed (a directory in its place too) and rendered again. :meth:`Cache.check` tells
+before any work whether the cache folder can be used. Temporary files left by killed processes are removed by
 :func:`clean_temporaries`. Files are written readable by others (mode 0644 under the usual umask).
 """
 
@@ -15,6 +16,7 @@ import hashlib
 import io
 import json
 import os
+import shutil
 import tempfile
 import time
 import warnings
@@ -142,6 +144,33 @@ class Cache:
         self.hits: dict[str, int] = {}
         self.misses: dict[str, int] = {}
 
+    def check(self) -> Cache:
+        """The cache, checked usable before any work: a one-line ``ValueError`` when its folder is a
+        file or cannot be written (a file is made and removed there; folders made for the check are
+        removed again)."""
+        if not self.enabled:
+            return self
+        root = self.root
+        made = [p for p in (root, *root.absolute().parents) if not p.exists()]
+        blocker = next((p for p in (root, *root.absolute().parents) if p.exists()), None)
+        if blocker is not None and not blocker.is_dir():
+            raise ValueError(f"cache folder {root}: {blocker} is a file, not a folder (--cache-dir or ${CACHE_ENV})")
+        try:
+            root.mkdir(parents=True, exist_ok=True)
+            fd, probe = tempfile.mkstemp(prefix=".write-test.", suffix=TEMP_SUFFIX, dir=root)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            raise ValueError(f"cache folder {root} is not writable ({exc.strerror or exc}); choose another with "
+                             "--cache-dir, or run with --no-cache") from None
+        finally:
+            for folder in made:  # deepest first
+                try:
+                    folder.rmdir()
+                except OSError:
+                    break
+        return self
+
     def path(self, kind: str, key: str) -> Path:
         return self.root / kind / key[:2] / f"{key}.npz"
 
@@ -163,7 +192,7 @@ class Cache:
             except Exception as exc:  # any unreadable file: zipfile.BadZipFile, OSError, ValueError, ...
                 warnings.warn(f"cache entry {path} is unreadable ({type(exc).__name__}: {exc}); "
                               "removed, rendering it again", stacklevel=2)
-                path.unlink(missing_ok=True)
+                _remove(path)
         self.misses[kind] = self.misses.get(kind, 0) + 1
         return None
 
@@ -173,7 +202,18 @@ class Cache:
             return
         buf = io.BytesIO()
         np.savez(buf, **arrays)
-        atomic_write_bytes(self.path(kind, key), buf.getvalue())
+        path = self.path(kind, key)
+        if path.is_dir() and not path.is_symlink():
+            _remove(path)
+        atomic_write_bytes(path, buf.getvalue())
 
     def discard(self, kind: str, key: str) -> None:
-        self.path(kind, key).unlink(missing_ok=True)
+        _remove(self.path(kind, key))
+
+
+def _remove(path: Path) -> None:
+    """Remove a cache entry: its file, or a directory that took its place."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink(missing_ok=True)

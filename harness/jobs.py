@@ -9,6 +9,11 @@ any I/O happen outside the timed region.
 Fault handling: a filter that fails to build, raises (``sys.exit`` included), returns a wrong
 shape or dtype, or non-finite values gives an ``error`` row with a short message.
 
+Inputs are read-only: a filter sees read-only copies of its channels (made outside the timed
+region), so one that writes into them anyway (after ``setflags(write=True)``) changes neither the
+group's shared frames nor another job's input; the write is detected (its copies no longer equal
+the frame) and the job ends with an ``error`` row naming the channels written.
+
 Metrics receive what their spec ``accepts``: the reference's variance of the mean (for the
 bias correction) and the mask of scored pixels (emitters left out unless the job includes
 them). A sequence metric is scored once, on the last frame's row; one that declares
@@ -63,7 +68,7 @@ class GroupInputs:
         Each reference's samples per pixel and median relative standard error.
     timing_frames : dict
         (width, height) -> frames at that real resolution, for jobs that time there
-        (:func:`harness.timing.timing_frames`).
+        (:func:`harness.real_resolutions.timing_frames`).
     """
 
     frames: list
@@ -134,7 +139,7 @@ def run_job(
     skipped_notes = [f"{name} skipped: {reason}" for name, reason in metrics.skipped.items()]
     rows, outputs, kept, masks = [], [], {}, []
     for t, frame in enumerate(inputs.frames):
-        shown = frame.subset(visible & frame.channels)
+        shown = read_only_copy(frame, visible & frame.channels)
         timing: dict = {}
         make = sampler_factory(renderer, inputs, job, t, job.resolution) if use_sampler else None
         try:
@@ -142,6 +147,12 @@ def run_job(
                                                     make, check=f"filter {job.filter!r}")
         except (Exception, SystemExit) as exc:
             rows.append(_row(job, inputs, t, frame, "error", filter_error(exc), timing=timing))
+            tick(n - t)
+            return JobResult(rows, kept)
+        written = changed_channels(shown, frame)
+        if written:
+            rows.append(_row(job, inputs, t, frame, "error", f"filter {job.filter!r} wrote into its input channel(s) "
+                             f"{written}: inputs are read-only; copy an array before changing it", timing=timing))
             tick(n - t)
             return JobResult(rows, kept)
         notes = list(skipped_notes)
@@ -206,6 +217,27 @@ def _score_per_frame(rows: list, name: str, metric, outputs: list, references: l
             rows[t].metrics[column] = float(metric(outputs[t - 1:t + 1], references[t - 1:t + 1], **pair))
         except Exception as exc:
             rows[t].notes = "; ".join(filter(None, [rows[t].notes, f"{column} failed: {short_error(exc, 120)}"]))
+
+
+def read_only_copy(frame: Frame, names) -> Frame:
+    """A frame of read-only copies of ``names`` (and ``color``) of ``frame``: what a filter is handed."""
+    arrays = {}
+    for name in sorted(set(names) | {"color"}):
+        array = np.array(frame[name], copy=True)
+        array.flags.writeable = False
+        arrays[name] = array
+    return Frame(arrays, frame.meta)
+
+
+def changed_channels(seen: Frame, frame: Frame) -> list[str]:
+    """The channels of ``seen`` (a :func:`read_only_copy`) whose values no longer equal ``frame``'s."""
+    changed = []
+    for name in sorted(seen.channels):
+        a, b = seen[name], frame[name]
+        same = np.array_equal(a, b, equal_nan=True) if a.dtype.kind == "f" else np.array_equal(a, b)
+        if not same:
+            changed.append(name)
+    return changed
 
 
 def emitter_mask(frame: Frame) -> np.ndarray | None:

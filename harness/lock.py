@@ -1,16 +1,27 @@
-"""A lock on a run's output folder, so that two runs never write into one folder at once."""
+"""A run's output folder: checked before use, locked so that two runs never write into it at once.
+
+An output folder is written only where it is new, empty, or already a denoise-bench output
+folder (it holds the :data:`LOCK_NAME` file every run leaves, or a run's ``manifest.json``): a run
+prunes and replaces files it owns there (``jobs/``, ``results.parquet``, ``report-frames/``), so
+it never starts in a folder of other files. :func:`output_folder` leaves a refused run's folder
+as it found it (no empty folder with a lock file).
+"""
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import os
 import platform
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 LOCK_NAME = ".lock"
+#: files whose presence marks a folder as a denoise-bench output folder (a run or a stress run)
+OUTPUT_MARKERS = (LOCK_NAME, "manifest.json")
 #: folders this process holds: resolved path -> [fd, holders]
 _HELD: dict[Path, list] = {}
 
@@ -90,10 +101,20 @@ def _describe(raw: bytes) -> str:
 
 
 def check_out_dir(out_dir: str | Path) -> Path:
-    """The output folder, created; a one-line ``ValueError`` when it is a file or not writable."""
+    """The output folder, created; a one-line ``ValueError`` when it cannot be one.
+
+    Refused: an empty name (it would be the current directory), a file, a folder that is not
+    writable, and a folder that holds files but is no denoise-bench output folder (no
+    :data:`OUTPUT_MARKERS` file).
+    """
+    if not str(out_dir).strip():
+        raise ValueError("--out must name a folder, got ''")
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} is a file, not a folder")
+    if out.is_dir() and not is_output_folder(out):
+        raise ValueError(f"--out {out} holds other files and is no denoise-bench output folder (it has no "
+                         f"{' or '.join(OUTPUT_MARKERS)}); choose a new or an empty folder")
     try:
         out.mkdir(parents=True, exist_ok=True)
         probe = out / ".write-test"
@@ -102,3 +123,50 @@ def check_out_dir(out_dir: str | Path) -> Path:
     except OSError as exc:
         raise ValueError(f"--out {out} is not writable ({exc.strerror or exc})") from None
     return out
+
+
+def is_output_folder(folder: str | Path) -> bool:
+    """True for an empty folder or one holding a :data:`OUTPUT_MARKERS` file (False where unreadable)."""
+    folder = Path(folder)
+    try:
+        names = {p.name for p in folder.iterdir()}
+    except OSError:
+        return False
+    return not names or bool(names & set(OUTPUT_MARKERS))
+
+
+@contextlib.contextmanager
+def output_folder(out_dir: str | Path) -> Iterator[Path]:
+    """:func:`check_out_dir` and :class:`FolderLock` around the body.
+
+    A body that raises before anything but the lock was written leaves no trace: the lock file
+    and the folders made for it are removed (never another process's lock: a folder locked by
+    another run raises :class:`FolderLocked` before the body and is left alone).
+    """
+    out = Path(out_dir)
+    made = [p for p in (out, *out.parents) if not p.exists()]
+    try:
+        lock = FolderLock(check_out_dir(out))
+    except ValueError:
+        _remove_unused(out, made)
+        raise
+    lock.acquire()
+    try:
+        yield out
+    except BaseException:
+        lock.release()
+        _remove_unused(out, made)
+        raise
+    lock.release()
+
+
+def _remove_unused(out: Path, made: list) -> None:
+    """Remove the lock file of ``out`` if it is all the folder holds, then the empty folders in ``made``."""
+    try:
+        if out.is_dir() and {p.name for p in out.iterdir()} == {LOCK_NAME}:
+            (out / LOCK_NAME).unlink()
+        for folder in made:  # deepest first
+            if folder.is_dir():
+                folder.rmdir()
+    except OSError:
+        return

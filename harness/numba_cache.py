@@ -1,47 +1,134 @@
-"""Where Numba keeps its compiled-function cache: a folder keyed by the source of every plugin.
+"""Where Numba keeps its compiled-function cache: one folder per plugin, keyed by that plugin's source.
 
 Numba's on-disk cache (``cache=True``) checks only the timestamp of the file that defines a
-function, not of the files whose functions it inlined or called. After an edit to a helper
-module, a stale cached kernel can run with the old code, or crash. The harness therefore points
-Numba at ``<cache home>/denoise-harness/numba/<digest>``, where the digest covers the source of
-the ``harness`` and ``plugins`` packages: any edit to them starts a fresh cache. A
-``NUMBA_CACHE_DIR`` set by the user is left alone. Third-party plugins keep Numba's default
-(their own ``__pycache__``).
+function, not of the files whose functions it inlined or called, so after an edit to a helper
+module a stale cached kernel could run with the old code. The harness therefore installs a cache
+locator that puts the kernels of each *compile unit* in a folder named by a digest of that
+unit's source:
+
+* a built-in plugin, ``plugins/<kind>/<name>`` (a package or a single module): its own ``.py``
+  files plus the harness's shared kernels (:mod:`harness.kernels`, the only harness code a
+  plugin's compiled code may call);
+* the ``harness`` package itself (its own kernels, such as :mod:`harness.floor`).
+
+An edit to one plugin therefore recompiles that plugin's kernels only; an edit to
+:mod:`harness.kernels` recompiles every plugin; an edit elsewhere in the harness recompiles the
+harness's own few kernels. The folders live in ``<cache home>/denoise-harness/numba/`` and are
+named ``<unit>-<digest>``, so checkouts with the same source share them. Source stamps are the
+digest, not the file's modification time, so a fresh clone of the same code finds its kernels.
+
+A ``NUMBA_CACHE_DIR`` set by the user is left alone (Numba then caches everything there, keyed
+by timestamps as usual). Third-party plugins keep Numba's default locators.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-import sys
+from functools import cache
 from pathlib import Path
 
+HARNESS = Path(__file__).resolve().parent
+PLUGINS = HARNESS.parent / "plugins"
+#: harness modules a plugin's compiled code may call: part of every plugin's digest
+SHARED_KERNELS = ("kernels.py", "kernels")
 
-def source_digest(*packages: Path) -> str:
-    """SHA-256 (first 16 hex digits) over the relative paths and bytes of every ``.py`` file."""
+
+def source_digest(*paths: Path) -> str:
+    """SHA-256 (first 16 hex digits) over the relative names and bytes of every ``.py`` file.
+
+    Parameters
+    ----------
+    *paths : pathlib.Path
+        Folders (searched recursively) or single files; missing paths are skipped.
+    """
     h = hashlib.sha256()
-    for root in packages:
-        for path in sorted(root.rglob("*.py")):
+    for root in paths:
+        files = sorted(root.rglob("*.py")) if root.is_dir() else [root] if root.is_file() else []
+        for path in files:
             h.update(path.relative_to(root.parent).as_posix().encode())
             h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 
-def configure_numba_cache() -> Path | None:
-    """Point Numba's cache at a folder keyed by the harness's and built-in plugins' source.
+def compile_unit(py_file: str | Path) -> tuple[str, tuple[Path, ...]] | None:
+    """The compile unit a source file belongs to: (name, the paths its digest covers), or None.
 
-    Returns the folder, or None when the user set ``NUMBA_CACHE_DIR`` themselves.
+    Parameters
+    ----------
+    py_file : path
+        The file that defines a compiled function.
+
+    Returns
+    -------
+    tuple or None
+        ``("harness", (harness folder,))`` for the harness, ``("<kind>.<name>", (plugin path,
+        shared kernels...))`` for a built-in plugin, None for any other file.
+    """
+    path = Path(py_file).resolve()
+    if path.is_relative_to(HARNESS):
+        return "harness", (HARNESS,)
+    if not path.is_relative_to(PLUGINS):
+        return None
+    parts = path.relative_to(PLUGINS).parts
+    if len(parts) < 2:
+        return None
+    unit = PLUGINS / parts[0] / parts[1]
+    name = f"{parts[0]}.{Path(parts[1]).stem}"
+    return name, (unit, *(HARNESS / s for s in SHARED_KERNELS))
+
+
+@cache
+def _unit_folder(name: str, paths: tuple[Path, ...]) -> tuple[str, str]:
+    """(folder, digest) of a compile unit (computed once per process)."""
+    digest = source_digest(*paths)
+    return str(cache_home() / f"{name}-{digest}"), digest
+
+
+def cache_home() -> Path:
+    """``$XDG_CACHE_HOME/denoise-harness/numba`` (``~/.cache`` when unset)."""
+    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return home / "denoise-harness" / "numba"
+
+
+def _locator_class():
+    """A Numba cache locator for the compile units (built on first use: Numba imports lazily)."""
+    from numba.core import caching
+
+    class UnitCacheLocator(caching._SourceFileBackedLocatorMixin, caching._CacheLocator):
+        """Caches a function of the harness or a built-in plugin in its compile unit's folder."""
+
+        def __init__(self, py_func, py_file):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path, self._digest = _unit_folder(*compile_unit(py_file))
+
+        def get_cache_path(self):
+            return self._cache_path
+
+        def get_source_stamp(self):
+            return self._digest
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if os.environ.get("NUMBA_CACHE_DIR") or compile_unit(py_file) is None:
+                return None
+            return super().from_function(py_func, py_file)
+
+    return UnitCacheLocator
+
+
+def configure_numba_cache() -> Path | None:
+    """Install the per-unit cache locator ahead of Numba's own (once per process).
+
+    Returns the folder holding the units' caches, or None when the user set
+    ``NUMBA_CACHE_DIR`` themselves.
     """
     if os.environ.get("NUMBA_CACHE_DIR"):
         return None
-    here = Path(__file__).resolve().parent
-    packages = [here]
-    plugins = here.parent / "plugins"
-    if plugins.is_dir():
-        packages.append(plugins)
-    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    folder = home / "denoise-harness" / "numba" / source_digest(*packages)
-    os.environ["NUMBA_CACHE_DIR"] = str(folder)
-    if "numba" in sys.modules:  # numba read its configuration already
-        sys.modules["numba"].config.CACHE_DIR = str(folder)
-    return folder
+    from numba.core import caching
+
+    locators = caching.CacheImpl._locator_classes
+    if not any(cls.__name__ == "UnitCacheLocator" for cls in locators):
+        locators.insert(0, _locator_class())
+    return cache_home()

@@ -35,6 +35,8 @@ PREFERRED_RENDERERS = {
     ("captured", "denoise"): ("captured",),
 }
 BACKEND_CHOICES = ("cpu", "cuda", "auto", "all")
+#: the largest seed: seeds are stored in int64 columns
+MAX_SEED = 2**63 - 1
 EMITTER_CHOICES = ("exclude", "include")
 
 
@@ -185,13 +187,14 @@ def check_choices(
 ) -> None:
     """Raise a one-line ``ValueError`` for any value out of range (the CLI checks the same)."""
 
-    def ints(name, values, low):
+    def ints(name, values, low, high=None):
         for v in values:
-            if isinstance(v, bool) or not isinstance(v, int) or v < low:
-                raise ValueError(f"{name} must be integers >= {low}, got {v!r}")
+            if isinstance(v, bool) or not isinstance(v, int) or v < low or (high is not None and v > high):
+                within = f">= {low}" if high is None else f"in [{low}, 2**63 - 1]"
+                raise ValueError(f"{name} must be integers {within}, got {v!r}")
 
     ints("spp", spp, 1)
-    ints("seeds", seeds, 0)
+    ints("seeds", seeds, 0, MAX_SEED)
     ints("repeats", [repeats], 1)
     if not spp or not seeds:
         raise ValueError("spp and seeds need at least one value each")
@@ -272,7 +275,7 @@ def make_plan(
         (excluded through the ``emission`` channel, which is then rendered).
     timing_resolutions : list of (width, height)
         Real resolutions every filter configuration is also timed at, per task and spp, on
-        :func:`timing_groups`' groups (see :mod:`harness.timing`).
+        :func:`timing_groups`' groups (see :mod:`harness.real_resolutions`).
     timing_scene : str, optional
         The scene those timings are taken on, where it serves the task.
     grid : mapping filter -> {param: list of values}, optional

@@ -29,7 +29,7 @@ column is one field here.
 ``stage_ms``              JSON of the filter's own per-stage breakdown, if it declares one
 ``ms_1280x720``           median per-frame filter time on a 1280x720 frame of the timing scene
 ``ms_1920x1080``          the same at 1920x1080 (both on the rows of one job per filter configuration,
-                          task and spp, see :mod:`harness.timing`; NaN on the others)
+                          task and spp, see :mod:`harness.real_resolutions`; NaN on the others)
 ``threads``               Numba threads of the process that ran the job
 ``machine``               CPU (and GPU) of the machine that ran the job
 ``nonfinite_repaired``    values replaced under ``--nonfinite repair``

@@ -46,7 +46,7 @@ from harness.report import outputs as kept
 from harness.results import write_table
 from harness.rows import combine, make_table
 from harness.tasks import JobTask
-from harness.timing import timing_frames
+from harness.real_resolutions import timing_frames
 
 
 @dataclass
@@ -62,12 +62,18 @@ class RunOutcome:
     removed : int
         Stored jobs removed because the plan does not include them.
     manifest : dict
+    plan : Plan or None
+        The plan that was run (set by :func:`harness.benchmark.run_benchmark`).
+    store : RenderStore or None
+        The render store it used (its cache counts hits and misses).
     """
 
     table: pd.DataFrame
     reused: int = 0
     removed: int = 0
     manifest: dict = field(default_factory=dict)
+    plan: Plan | None = None
+    store: RenderStore | None = None
 
 
 def run_plan(

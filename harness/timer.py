@@ -9,7 +9,7 @@ synchronised before the clock stops. Validation happens outside the timed region
 before each timed call so that every repeat starts from the same history; the state after the
 last repeat carries on to the next frame. An adaptive filter's timed call includes the extra
 samples it asks for (a fresh sampler per call). :func:`time_real_resolutions` applies the
-protocol to a group's frames at real resolutions (:mod:`harness.timing`).
+protocol to a group's frames at real resolutions (:mod:`harness.real_resolutions`).
 """
 
 from __future__ import annotations

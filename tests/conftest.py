@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
+import subprocess
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 
 import pytest
@@ -47,3 +51,31 @@ def bench_env(extra_path: Path | None = None) -> dict:
         env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(extra_path), env.get("PYTHONPATH", "")]))
     env["DENOISE_HARNESS_DISABLE"] = ""
     return env
+
+
+def cli(args, env=None, check=True):
+    """Run ``denoise-bench ARGS``; returns a ``subprocess.CompletedProcess`` (``returncode``, ``stdout``, ``stderr``).
+
+    In this process (no interpreter start, no second import of the plugins: the fast tier's way)
+    unless ``env`` is given, which needs a process of its own (extra modules on its path). Where
+    the command starts workers, they are processes of their own either way.
+    """
+    args = [str(a) for a in args]
+    if env is not None:
+        out = subprocess.run([sys.executable, "-m", "harness.cli", *args], capture_output=True, text=True, env=env)
+    else:
+        from harness.cli import main
+
+        stdout, stderr = io.StringIO(), io.StringIO()
+        shown = warnings.showwarning
+        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr), warnings.catch_warnings():
+            try:
+                code = main(args)
+            except SystemExit as exc:  # argparse's usage errors
+                code = exc.code if isinstance(exc.code, int) else 1
+            finally:
+                warnings.showwarning = shown
+        out = subprocess.CompletedProcess(["denoise-bench", *args], code, stdout.getvalue(), stderr.getvalue())
+    if check and out.returncode != 0:
+        raise AssertionError(f"exit {out.returncode}\n{out.stdout}\n{out.stderr}")
+    return out

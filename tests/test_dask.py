@@ -19,14 +19,13 @@ import pandas as pd
 import pytest
 
 from harness import load_plugins
+from harness.benchmark import run_benchmark
 from harness.cache import Cache
 from harness.executors import make_executor
 from harness.executors.base import PluginOptions
-from harness.plan import make_plan
 from harness.remote_renders import RemoteRenders
 from harness.renders import RenderStore
 from harness.rows import TIMING_COLUMNS
-from harness.run import run_plan
 from tests import dask_plugins
 from tests.conftest import bench_env
 from tests.test_run import bench
@@ -58,11 +57,10 @@ def comparable(df):
         drop=True)
 
 
-def run(registry, executor, tmp_path, filters, scenes=SCENES, name="o", **options):
-    store = RenderStore(registry, Cache(tmp_path / f"cache-{name}"), resolution=(40, 30))
-    plan = make_plan(registry, store, [registry.scenes[s] for s in scenes], filters, METRICS, frames=3, repeats=1,
-                     reference_spp=24, **options)
-    return run_plan(registry, plan, store, executor, tmp_path / name, progress=False).table
+def run(registry, executor, tmp_path, filters, scenes=SCENES, name="o", seeds=(0,)):
+    return run_benchmark(out=tmp_path / name, registry=registry, executor=executor, scenes=scenes, filters=filters,
+                         metrics=METRICS, frames=3, repeats=1, reference_spp=24, seeds=seeds, timing_at=(),
+                         resolution=(40, 30), cache_dir=tmp_path / f"cache-{name}").table
 
 
 @needs_dask

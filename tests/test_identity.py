@@ -3,14 +3,13 @@
 import json
 import os
 import stat
-import time
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from harness import load_plugins
-from harness.cache import Cache, atomic_write_bytes, clean_temporaries
+from harness.cache import PROCESS_START, TEMP_GRACE_S, Cache, atomic_write_bytes, clean_temporaries
 from harness.manifest import provenance
 from harness.plan import make_plan
 from harness.renders import RenderStore
@@ -95,7 +94,8 @@ def test_abandoned_temporary_files_are_cleaned(tmp_path):
     old = tmp_path / "frames" / "ab" / ".abcd.npz.x1y2.tmp"
     old.parent.mkdir(parents=True)
     old.write_bytes(b"half")
-    os.utime(old, (time.time() - 3600, time.time() - 3600))
+    abandoned = PROCESS_START - TEMP_GRACE_S - 3600  # an hour before this process could have written it
+    os.utime(old, (abandoned, abandoned))
     fresh = tmp_path / "frames" / "ab" / ".efgh.npz.z9.tmp"
     fresh.write_bytes(b"being written")
     keep = tmp_path / "frames" / "ab" / "abcd.npz"

@@ -13,13 +13,12 @@ import pandas as pd
 import pytest
 
 from harness import FilterSpec, RendererSpec, hookimpl, load_plugins
+from harness.benchmark import run_benchmark
 from harness.cache import Cache
-from harness.executors import make_executor
 from harness.plan import make_plan
 from harness.renders import RenderStore
 from harness.rows import TIMING_COLUMNS
-from harness.run import run_plan
-from tests.conftest import bench_env
+from tests.conftest import bench_env, cli
 
 BASE = [
     "--scenes",
@@ -38,25 +37,18 @@ BASE = [
 ]
 
 
-def bench(args, env=None, check=True):
-    out = subprocess.run(
-        [sys.executable, "-m", "harness.cli", *map(str, args)], capture_output=True, text=True, env=env or bench_env()
-    )
-    if check and out.returncode != 0:
-        raise AssertionError(f"exit {out.returncode}\n{out.stdout}\n{out.stderr}")
-    return out
+bench = cli  # the command, in this process unless an environment is given
 
 
 def without_timing(df):
     return df.drop(columns=[*TIMING_COLUMNS, "machine"]).sort_values(["job_id", "frame"]).reset_index(drop=True)
 
 
-def run_api(reg, tmp_path, scenes, filters, metrics, executor="inline", resolution=None, **plan_options):
+def run_api(reg, tmp_path, scenes, filters, metrics, executor="inline", **options):
     """Plan and run through the library (no CLI); returns the results table."""
-    store = RenderStore(reg, Cache(tmp_path / "c"), resolution=resolution)
-    plan = make_plan(reg, store, [reg.scenes[s] for s in scenes], filters, metrics, **plan_options)
-    with make_executor(executor, registry=reg) as ex:
-        return run_plan(reg, plan, store, ex, tmp_path / "o", progress=False).table
+    return run_benchmark(out=tmp_path / "o", registry=reg, scenes=scenes, filters=filters, metrics=metrics,
+                         executor=executor, cache_dir=tmp_path / "c", seeds=options.pop("seeds", [0]),
+                         timing_at=options.pop("timing_at", ()), **options).table
 
 
 def test_run_writes_results_and_manifest_and_reuses_the_cache(tmp_path):

@@ -6,14 +6,13 @@ import numpy as np
 import pytest
 
 from harness import load_plugins
+from harness.benchmark import run_benchmark
 from harness.cache import Cache
 from harness.cli.parser import build_parser
-from harness.executors import make_executor
 from harness.pareto import configuration_points, pareto_front, time_resolution
 from harness.plan import make_plan
 from harness.render_cost import measure_render_cost
 from harness.renders import RenderStore
-from harness.run import run_plan
 from harness.sweeps import MAX_CONFIGURATIONS, grid_points
 
 
@@ -71,14 +70,13 @@ def test_a_sweep_over_filters_and_spp_gives_a_monotone_front(reg, tmp_path):
     Timed at the scene's own (small) resolution to stay quick; the same functions use 1280x720
     where a run is timed there.
     """
-    store = RenderStore(reg, Cache(tmp_path / "c"), resolution=(48, 32))
-    plan = make_plan(reg, store, [reg.scenes["synthetic-moving"]], ["eaw", "svgf"], ["display_rmse"], spp=[1, 2, 4],
-                     seeds=[0], frames=2, repeats=1, reference_spp=16,
-                     grid={"eaw": {"iterations": [1, 2, 3, 4, 5]}, "svgf": {"iterations": [1, 3, 5]}})
-    with make_executor("inline", registry=reg) as ex:
-        df = run_plan(reg, plan, store, ex, tmp_path / "o", progress=False).table
+    run = run_benchmark(out=tmp_path / "o", registry=reg, executor="inline", cache_dir=tmp_path / "c",
+                        resolution=(48, 32), scenes=["synthetic-moving"], filters=["eaw", "svgf"],
+                        metrics=["display_rmse"], spp=[1, 2, 4], seeds=[0], frames=2, repeats=1, reference_spp=16,
+                        timing_at=(), grid={"eaw": {"iterations": [1, 2, 3, 4, 5]}, "svgf": {"iterations": [1, 3, 5]}})
+    df = run.table
     assert (df.status == "ok").all()
-    cost = measure_render_cost(store, plan, resolutions=[(48, 32)], repeats=1)
+    cost = measure_render_cost(run.store, run.plan, resolutions=[(48, 32)], repeats=1)
     assert sorted(cost.spp) == [1, 2, 4] and (cost.render_ms > 0).all()
     assert time_resolution(df) is None
     points = configuration_points(df, "display_rmse", "denoise", resolution=None, render_cost=cost)
@@ -96,14 +94,13 @@ def test_a_sweep_over_filters_and_spp_gives_a_monotone_front(reg, tmp_path):
 def test_each_configuration_is_timed_at_each_spp_and_the_front_uses_its_own(reg, tmp_path):
     """``--spp 1,2`` on a synthetic scene timed at 1280x720: every configuration has a real-resolution
     time at both spp, and each point's filter time is the one measured at its own spp."""
-    store = RenderStore(reg, Cache(tmp_path / "c"), resolution=(48, 32))
-    plan = make_plan(reg, store, [reg.scenes["synthetic-moving"]], ["passthrough", "gaussian"], ["display_rmse"],
-                     spp=[1, 2], seeds=[0, 1], frames=2, repeats=1, reference_spp=16,
-                     grid={"gaussian": {"sigma": [1.0, 2.0]}}, timing_resolutions=((1280, 720),),
-                     timing_scene="synthetic-moving")
-    assert sorted({(j.spp, j.seed) for j in plan.jobs if j.timing}) == [(1, 0), (2, 0)]
-    with make_executor("inline", registry=reg) as ex:
-        df = run_plan(reg, plan, store, ex, tmp_path / "o", progress=False).table
+    run = run_benchmark(out=tmp_path / "o", registry=reg, executor="inline", cache_dir=tmp_path / "c",
+                        resolution=(48, 32), scenes=["synthetic-moving"], filters=["passthrough", "gaussian"],
+                        metrics=["display_rmse"], spp=[1, 2], seeds=[0, 1], frames=2, repeats=1, reference_spp=16,
+                        grid={"gaussian": {"sigma": [1.0, 2.0]}}, timing_at=((1280, 720),),
+                        timing_scene="synthetic-moving")
+    assert sorted({(j.spp, j.seed) for j in run.plan.jobs if j.timing}) == [(1, 0), (2, 0)]
+    df = run.table
     assert (df.status == "ok").all()
     timed = df.dropna(subset=["ms_1280x720"])
     assert set(timed.seed) == {0} and (timed.ms_1280x720 > 0).all()

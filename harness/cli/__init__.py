@@ -25,15 +25,34 @@ def _warning_line(message, category, filename, lineno, file=None, line=None) -> 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``denoise-bench``; returns the exit status."""
-    from harness.cli import commands
+    from harness.cli import names
+    from harness.cli.checks import check_scheduler_option
     from harness.cli.parser import build_parser
 
     args = build_parser().parse_args(argv)
     warnings.showwarning = _warning_line
+    digest = names.fingerprint()
+    known = names.known_names(digest)
+    message = names.refusal(args, known) if known is not None else None
+    if message:  # answered from the plugin name index, before any plugin is imported
+        print(f"denoise-bench {args.command}: {message}", file=sys.stderr)
+        return 2
+    try:
+        check_scheduler_option(args)
+    except ValueError as exc:
+        print(f"denoise-bench {args.command}: {exc}", file=sys.stderr)
+        return 2
+    from harness.cli import commands
+
     try:
         registry = load_plugins(disable=args.disable)
     except PluginConflictError as exc:
         print(f"denoise-bench: {exc}", file=sys.stderr)
+        return 2
+    names.write_index(registry, digest)
+    unknown = names.unknown_disabled(registry, args.disable)
+    if unknown:
+        print(f"denoise-bench {args.command}: --disable: unknown plugin name(s) {unknown}", file=sys.stderr)
         return 2
     for record in registry.broken:
         if record.kind == "module" and record.error.startswith("unknown hook"):

@@ -10,11 +10,18 @@ from collections import defaultdict
 import pandas as pd
 
 from harness.bench import DEFAULT_PEERS, bench_filters
+from harness.benchmark import run_benchmark
 from harness.cache import Cache
+from harness.cli.checks import (
+    check_rank_by,
+    check_run_options,
+    markdown_file,
+)
 from harness.cli.stress import run_stress_command, show_stress
+from harness.estimate import check_work, reference_work
 from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
-from harness.lock import FolderLock, check_out_dir
+from harness.lock import output_folder
 from harness.manifest import read_manifest
 from harness.pareto import (
     DEFAULT_BUDGETS,
@@ -24,7 +31,7 @@ from harness.pareto import (
     resolution_label,
     time_resolution,
 )
-from harness.plan import choose_renderer, make_plan
+from harness.plan import choose_renderer
 from harness.profiles import PROFILES, get_profile
 from harness.references import reference_record
 from harness.render_cost import measure_render_cost, read_render_cost, write_render_cost
@@ -40,8 +47,6 @@ from harness.results import (
     timing_setups,
     to_markdown,
 )
-from harness.run import run_plan
-from harness.specs import TASKS
 
 
 def _grouped(pairs) -> dict:
@@ -60,7 +65,8 @@ def _grid(items) -> dict:
 
 
 def _cache(args) -> Cache:
-    return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False))
+    """The render cache of ``--cache-dir``/``--no-cache``, checked usable before any work."""
+    return Cache(args.cache_dir, enabled=not getattr(args, "no_cache", False)).check()
 
 
 def _cluster_options(args) -> dict:
@@ -93,44 +99,44 @@ def _progress(args) -> bool:
 
 
 def cmd_run(registry, args) -> int:
-    """Plan, run, store and summarise a benchmark."""
-    tasks = list(TASKS) if args.task == "all" else [args.task]
+    """Plan, run, store and summarise a benchmark (:func:`harness.benchmark.run_benchmark`)."""
+    check_run_options(registry, args)
     _cluster_options(args)
-    with FolderLock(check_out_dir(args.out)):
-        return _run(registry, args, tasks)
+    with output_folder(args.out):
+        return _run(registry, args)
 
 
-def _profile(args):
-    """The run's profile with the options given on the command line in place of its values."""
-    return get_profile(args.profile).with_overrides(
-        resolution=args.resolution, frames=args.frames, seeds=tuple(args.seeds) if args.seeds else None,
-        reference_spp=args.reference_spp, reference_target=args.reference_target,
-        repeats=getattr(args, "repeats", None), timing=getattr(args, "timing_at", None),
-        timing_scene=getattr(args, "timing_scene", None),
+def _announce(args):
+    def show(plan, specs) -> None:
+        estimate = plan.settings.get("estimate", {}).get("announcement")
+        if estimate:
+            print(f"denoise-bench run: {estimate}", file=sys.stderr)
+        print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
+              f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
+
+    return show
+
+
+def _banner(executor) -> None:
+    if hasattr(executor, "banner"):
+        print(executor.banner(), file=sys.stderr)
+
+
+def _run(registry, args) -> int:
+    outcome = run_benchmark(
+        out=args.out, registry=registry, profile=args.profile, task=args.task, scenes=args.scenes,
+        scene_dirs=args.scene_dir, filters=args.filters, metrics=args.metrics, renderer=args.renderer,
+        backends=args.backend, spp=args.spp, seeds=args.seeds, frames=args.frames, resolution=args.resolution,
+        reference_spp=args.reference_spp, reference_target=args.reference_target, repeats=args.repeats,
+        timing_at=args.timing_at, timing_scene=args.timing_scene, emitters=args.emitters,
+        params=_grouped(args.param), presets=dict(args.preset), grid=_grid(args.grid), nonfinite=args.nonfinite,
+        executor=args.executor, executor_options=_cluster_options(args), timeout=args.timeout,
+        disable=args.disable, cache_dir=args.cache_dir, use_cache=not args.no_cache, max_hours=args.max_hours,
+        resume=args.resume,
+        pictures=args.pictures, report_frames=args.report, save_outputs=args.save_outputs,
+        progress=_progress(args), on_plan=_announce(args), on_executor=_banner,
     )
-
-
-def _run(registry, args, tasks) -> int:
-    profile = _profile(args)
-    store = RenderStore(registry, _cache(args), resolution=profile.resolution)
-    specs = scene_selection(registry, store, args.scenes, args.scene_dir, tasks)
-    filters = args.filters or sorted(n for n, s in registry.filters.items() if s.tasks & set(tasks))
-    metrics = args.metrics or sorted(registry.metrics)
-    plan = make_plan(
-        registry, store, specs, filters, metrics, tasks=tasks, renderer=args.renderer, backends=args.backend,
-        spp=args.spp, seeds=list(profile.seeds), frames=profile.frames, params=_grouped(args.param),
-        presets=dict(args.preset), repeats=profile.repeats, reference_spp=args.reference_spp,
-        nonfinite=args.nonfinite, sampled_reference_spp=profile.reference_spp,
-        reference_target=profile.reference_target, emitters=args.emitters,
-        timing_resolutions=profile.timing, timing_scene=profile.timing_scene, grid=_grid(args.grid),
-    )
-    plan.settings["profile"] = {**profile.as_dict(), "name": args.profile}
-    print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
-          f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
-    with _executor(registry, args) as executor:
-        outcome = run_plan(registry, plan, store, executor, args.out, resume=args.resume, pictures=args.pictures,
-                           report_frames=args.report, save_outputs=args.save_outputs, progress=_progress(args))
-    df = outcome.table
+    df, store, plan = outcome.table, outcome.store, outcome.plan
     if args.csv:
         df.to_csv(args.out / "results.csv", index=False)
     hits, misses = sum(store.cache.hits.values()), sum(store.cache.misses.values())
@@ -190,6 +196,7 @@ def _print_time_against_error(df: pd.DataFrame, registry, args, render_cost) -> 
 def cmd_report(registry, args) -> int:
     """Write the static HTML report of a stored run."""
     started = time.perf_counter()
+    check_rank_by(read_results(args.dir), args.rank_by)
     index = write_report(args.dir, registry, out=args.out, metrics=args.plot_metrics,
                          budgets=args.budget or DEFAULT_BUDGETS, rank_by=args.rank_by)
     print(f"report written to {index} in {time.perf_counter() - started:.1f} s")
@@ -244,9 +251,12 @@ def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
 
 def cmd_show(registry, args) -> int:
     """Print the summary (or every row) and the leaderboard of a stored run."""
+    if args.markdown is not None:
+        markdown_file(args.markdown, args.dir)
     if (read_manifest(args.dir) or {}).get("kind") == "stress":
         return show_stress(args)
     df = read_results(args.dir)
+    check_rank_by(df, args.rank_by)
     if args.all:
         print(format_table(df))
     else:
@@ -323,6 +333,9 @@ def cmd_render(registry, args) -> int:
     specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
     work = [_what_to_render(registry, spec, args, profile) for spec in specs]
     target = profile.reference_target
+    estimate = check_work(reference_work(store, work, target or 0.0), store, args.max_hours)
+    if estimate["announcement"]:
+        print(f"denoise-bench render: {estimate['announcement']}", file=sys.stderr)
     if args.executor == "dask":
         return _render_on_cluster(registry, args, store, work, target)
     for spec, rname, spp, frames in work:
@@ -424,8 +437,10 @@ def cmd_bench(registry, args) -> int:
     """Time filters per frame at each resolution and thread count, with peers and floors on the same frame."""
     from harness.bench_markdown import bench_markdown, environment_line
 
+    if args.markdown is not None:
+        markdown_file(args.markdown)
     peers = args.peers if args.peers is not None else [p for p in DEFAULT_PEERS if p in registry.filters]
-    store = RenderStore(registry, Cache(args.cache_dir))
+    store = RenderStore(registry, _cache(args))
 
     def say(line: str) -> None:
         if not args.quiet:

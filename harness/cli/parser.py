@@ -11,7 +11,7 @@ from pathlib import Path
 
 from harness.cache import default_cache_dir
 from harness.executors import DASK_MISSING, DEFAULT_TIMEOUT_S, EXECUTOR_NAMES, EXECUTORS
-from harness.plan import BACKEND_CHOICES, EMITTER_CHOICES
+from harness.plan import BACKEND_CHOICES, EMITTER_CHOICES, MAX_SEED
 from harness.profiles import DEFAULT_PROFILE, PROFILES
 from harness.rows import REAL_RESOLUTIONS
 from harness.specs import TASKS
@@ -35,8 +35,12 @@ def names(value: str) -> list[str]:
     return items
 
 
-def integers(low: int):
-    """A comma-separated list of integers >= ``low``."""
+def _bound(high: int | None) -> str:
+    return "2**63 - 1" if high == MAX_SEED else str(high)
+
+
+def integers(low: int, high: int | None = None):
+    """A comma-separated list of integers >= ``low`` (and <= ``high``)."""
 
     def parse(value: str) -> list[int]:
         try:
@@ -45,13 +49,15 @@ def integers(low: int):
             raise argparse.ArgumentTypeError(f"must be integers separated by commas, got {value!r}") from None
         if not items or min(items) < low:
             raise argparse.ArgumentTypeError(f"must be integers >= {low}, got {value!r}")
+        if high is not None and max(items) > high:
+            raise argparse.ArgumentTypeError(f"must be integers in [{low}, {_bound(high)}], got {value!r}")
         return items
 
     return parse
 
 
-def integer(low: int):
-    """One integer >= ``low``."""
+def integer(low: int, high: int | None = None):
+    """One integer >= ``low`` (and <= ``high``)."""
 
     def parse(value: str) -> int:
         try:
@@ -60,6 +66,8 @@ def integer(low: int):
             raise argparse.ArgumentTypeError(f"must be an integer, got {value!r}") from None
         if number < low:
             raise argparse.ArgumentTypeError(f"must be >= {low}, got {number}")
+        if high is not None and number > high:
+            raise argparse.ArgumentTypeError(f"must be in [{low}, {_bound(high)}], got {number}")
         return number
 
     return parse
@@ -209,8 +217,25 @@ def executor_name(allowed=EXECUTOR_NAMES):
     return parse
 
 
+def folder(value: str) -> Path:
+    """A folder name (an empty one would be the current directory)."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError("must name a folder, got ''")
+    return Path(value)
+
+
+def hours(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number of hours, got {value!r}") from None
+    if not 0 < number < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number of hours > 0, got {value!r}")
+    return number
+
+
 def out_dir(value: str) -> Path:
-    path = Path(value)
+    path = folder(value)
     if path.exists() and not path.is_dir():
         raise argparse.ArgumentTypeError(f"{value} is a file, not a folder")
     return path
@@ -269,7 +294,7 @@ def _add_selection(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resolution", type=resolution, default=None, metavar="WxH",
                    help="override every scene's resolution")
     p.add_argument("--frames", type=integer(1), default=None, help="at most this many frames per scene")
-    p.add_argument("--cache-dir", type=Path, default=None,
+    p.add_argument("--cache-dir", type=folder, default=None,
                    help=f"render cache (default: $DENOISE_HARNESS_CACHE or {default_cache_dir()})")
     p.add_argument("--no-cache", action="store_true", help="neither read nor write the render cache")
 
@@ -291,8 +316,8 @@ def build_parser() -> Parser:
                      help="cpu, cuda, auto (cuda where a GPU is present) or all; comma-separated")
     run.add_argument("--spp", type=integers(1), default=[1], metavar="N",
                      help="samples per pixel of the noisy input (list)")
-    run.add_argument("--seeds", type=integers(0), default=None, metavar="S",
-                     help="seeds of the noisy input (list; default: the profile's)")
+    run.add_argument("--seeds", type=integers(0, MAX_SEED), default=None, metavar="S",
+                     help="seeds of the noisy input, each in [0, 2**63 - 1] (list; default: the profile's)")
     run.add_argument("--reference-spp", type=integer(1), default=None,
                      help="samples per pixel of references, the cap with a target (default: the profile's, else "
                           "the renderer's)")
@@ -330,6 +355,9 @@ def build_parser() -> Parser:
     run.add_argument("--report", action="store_true",
                      help="keep the outputs of three frames per job (first seed) and write the HTML report to "
                           "OUT/report/ at the end (see 'denoise-bench report')")
+    run.add_argument("--max-hours", type=hours, default=None, metavar="H",
+                     help="refuse the run when its rendering is estimated to take longer than H hours (the estimate "
+                          "is printed for runs over 10 minutes)")
     run.add_argument("--no-render-cost", action="store_true",
                      help="do not time the renderer per spp at the timing resolution (equal-time analysis)")
     _add_report_options(run)
@@ -370,6 +398,8 @@ def build_parser() -> Parser:
     render.add_argument("--reference-target", type=fraction, default=None, metavar="E",
                         help="stop at this median relative standard error (default: the profile's)")
     render.add_argument("--chunk", type=integer(1), default=64, help="samples per chunk between checkpoints")
+    render.add_argument("--max-hours", type=hours, default=None, metavar="H",
+                        help="refuse when the references are estimated to take longer than H hours")
     render.add_argument("--executor", type=executor_name(("inline", "dask")), default="inline",
                         metavar="{inline,dask}",
                         help="inline (this process; default) or dask (each chunk a task on a dask.distributed "
@@ -382,7 +412,7 @@ def build_parser() -> Parser:
     export.add_argument("--out", type=out_dir, required=True, help="folder receiving one capture folder per scene")
     export.add_argument("--task", choices=list(TASKS), default="denoise", help="whose frames and references")
     export.add_argument("--spp", type=integer(1), default=1, help="samples per pixel of the frames (default 1)")
-    export.add_argument("--seed", type=integer(0), default=0, help="seed of the frames (default 0)")
+    export.add_argument("--seed", type=integer(0, MAX_SEED), default=0, help="seed of the frames (default 0)")
     export.add_argument("--reference-spp", type=integer(1), default=None,
                         help="samples per pixel of references (default: the renderer's)")
     export.add_argument("--half", action="store_true", help="store half floats (smaller; not bit-exact)")
@@ -406,7 +436,7 @@ def build_parser() -> Parser:
                             "reference needs about 6 GB at 1280x720, 13 GB at 1920x1080)")
     bench.add_argument("--param", type=param, action="append", default=[], metavar="FILTER.NAME=VALUE")
     bench.add_argument("--preset", type=preset, action="append", default=[], metavar="FILTER=PRESET")
-    bench.add_argument("--cache-dir", type=Path, default=None)
+    bench.add_argument("--cache-dir", type=folder, default=None)
     bench.add_argument("--markdown", type=Path, default=None, metavar="FILE",
                        help="also write the command, the machine and the tables as markdown to FILE")
     bench.add_argument("--quiet", action="store_true", help="no progress lines on standard error")
@@ -417,7 +447,7 @@ def build_parser() -> Parser:
 
     train = sub.add_parser("train", help="train a learned filter and write its weights")
     train.add_argument("filter")
-    train.add_argument("--seed", type=integer(0), default=0)
+    train.add_argument("--seed", type=integer(0, MAX_SEED), default=0)
     train.add_argument("--output", type=Path, default=None,
                        help="weights file (default: the filter's shipped location)")
     train.add_argument("--quick", action="store_true", help="a short run (minutes) for smoke tests")
@@ -449,7 +479,8 @@ def _add_stress(sub) -> None:
                              "ones; none with --fuzz or --replay)")
     stress.add_argument("--fuzz", type=integer(1), default=None, metavar="N",
                         help="generate N examples per filter with Hypothesis; shrink a failure to a reproducer")
-    stress.add_argument("--seed", type=integer(0), default=0, help="seed of the fuzzing search (default 0)")
+    stress.add_argument("--seed", type=integer(0, MAX_SEED), default=0,
+                        help="seed of the fuzzing search (default 0)")
     stress.add_argument("--replay", type=reproducer_file, default=None, metavar="FILE",
                         help="run a reproducer file again (on its filter, or on --filters)")
     stress.add_argument("--backend", type=backends, default=["auto"], metavar="B",

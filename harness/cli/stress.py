@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 import pandas as pd
 
+from harness.cli.checks import markdown_file
 from harness.executors.base import Executor
 from harness.manifest import read_manifest
 from harness.results import format_table, to_markdown
@@ -19,6 +20,8 @@ def run_stress_command(registry, args, make_executor: Callable[[], Executor]) ->
     """
     from harness.stress import load_reproducer, make_targets, run_stress, select_cases
 
+    if args.markdown is not None:
+        markdown_file(args.markdown, args.out)
     filters, backends, params = args.filters, args.backend, {}
     for name, key, value in args.param:
         params.setdefault(name, {})[key] = value

@@ -5,10 +5,22 @@ alive between tasks, so compiled kernels stay warm. The parent watches it: a tas
 no progress for ``timeout`` seconds is a hang (the worker is killed), and a worker that dies
 (a segfault, ``os._exit``, the kernel's out-of-memory killer) turns its task into an error
 outcome naming what happened. A new worker is started for the next task.
+
+The worker runs the parent's code: it starts isolated (``python -I``: neither the current
+directory nor ``PYTHON*`` variables shape its import path) with the parent's ``sys.path`` (in
+the parent's current directory, so relative entries mean the same), and
+reports where it imported ``harness`` from and the source hash of each plugin it loaded; a
+worker that runs other code than the parent (whose manifest records the parent's) is an error,
+never a silent substitute. It runs in its own process group, which is ended with it, so child
+processes a plugin starts do not outlive it.
+
+A task may define ``prepare(context)``: work done before the task's clock (compilation of a
+filter's kernels, say), with its own limit ``prepare_timeout`` (seconds) instead of ``timeout``.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -16,11 +28,17 @@ import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection
+from pathlib import Path
 
 from harness.executors.base import Executor, Outcome, PluginOptions, Task
 
 #: seconds a new worker may take to load the plugins
 START_TIMEOUT_S = 300.0
+#: seconds a task's ``prepare`` may take when the task does not say (compilation on a loaded machine)
+PREPARE_TIMEOUT_S = 1800.0
+#: the worker's bootstrap: the parent's import path, then the worker's main (run with ``python -I -c``)
+_BOOTSTRAP = ("import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
+              "from harness.executors.worker import main; sys.exit(main(sys.argv[2:]))")
 
 _SIGNALS = {
     signal.SIGSEGV: "segmentation fault",
@@ -54,6 +72,7 @@ class LocalExecutor(Executor):
     def __init__(self, registry=None, *, plugins: PluginOptions | None = None, timeout: float = 600.0, **_ignored):
         if not timeout > 0:
             raise ValueError(f"timeout must be > 0 seconds, got {timeout!r}")
+        self.registry = registry
         self.plugins = plugins or PluginOptions()
         self.timeout = float(timeout)
         self._proc: subprocess.Popen | None = None
@@ -62,21 +81,23 @@ class LocalExecutor(Executor):
         self._held = ""
         self.started = 0
         self.handoff_s: list[float] = []
+        self.worker_code: dict = {}
 
     # ------------------------------------------------------------------ worker life
     def _start(self) -> None:
         read_child, write_parent = os.pipe()
         read_parent, write_child = os.pipe()
         env = dict(os.environ)
-        env["PYTHONPATH"] = os.pathsep.join(p for p in sys.path if p)
         env["DENOISE_HARNESS_PARENT"] = str(os.getpid())
+        path = json.dumps([p for p in sys.path if isinstance(p, str)])  # the worker starts in this cwd
         try:
             self._proc = subprocess.Popen(
-                [sys.executable, "-m", "harness.executors.worker", str(read_child), str(write_child)],
+                [sys.executable, "-I", "-c", _BOOTSTRAP, path, str(read_child), str(write_child)],
                 pass_fds=(read_child, write_child),
                 stdin=subprocess.DEVNULL,
                 stdout=sys.__stderr__.fileno() if sys.__stderr__ is not None else subprocess.DEVNULL,
                 env=env,
+                start_new_session=True,
             )
         finally:
             os.close(read_child)
@@ -89,6 +110,23 @@ class LocalExecutor(Executor):
         message = self._receive(START_TIMEOUT_S, "starting the worker")
         if message[0] != "ready":
             raise WorkerDied(f"the worker could not start: {message[1]}")
+        self._check_code(message[1])
+
+    def _check_code(self, info: dict) -> None:
+        """The worker must run this process's ``harness`` and the same source of every plugin both loaded."""
+        import harness
+
+        mine = str(Path(harness.__file__).resolve().parent)
+        if info.get("harness") != mine:
+            raise WorkerDied(f"the worker imported harness from {info.get('harness')}, this process from {mine}: "
+                             "it would run other code than the run records")
+        ours, theirs = {}, info.get("plugins", {})
+        if self.registry is not None:
+            ours = {f"{r.kind}:{r.name}": r.source_hash for r in self.registry.records if r.status == "ok"}
+            differ = sorted(k for k in ours.keys() & theirs.keys() if ours[k] != theirs[k])
+            if differ:
+                raise WorkerDied(f"the worker loaded other source of plugin(s) {differ} than this process")
+        self.worker_code = {"same_harness": True, "plugins_compared": len(ours.keys() & theirs.keys())}
 
     def _stop(self, kill: bool) -> None:
         proc, self._proc = self._proc, None
@@ -103,6 +141,7 @@ class LocalExecutor(Executor):
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+        _end_group(proc.pid)
         for conn in (self._inbox, self._outbox):
             if conn is not None:
                 conn.close()
@@ -157,8 +196,16 @@ class LocalExecutor(Executor):
                 self._held = task.shared.key
             self._outbox.send(("task", task.without_shared()))
             self.handoff_s.append(time.perf_counter() - start)
+            prepared = not callable(getattr(task, "prepare", None))
             while True:
-                message = self._receive(self.timeout, task.label)
+                if prepared:
+                    message = self._receive(self.timeout, task.label)
+                else:
+                    limit = getattr(task, "prepare_timeout", None) or max(PREPARE_TIMEOUT_S, self.timeout)
+                    message = self._receive(limit, f"preparing {task.label}")
+                if message[0] == "prepared":
+                    prepared = True
+                    continue
                 if message[0] == "progress":
                     done += message[1]
                     if progress is not None:
@@ -176,4 +223,13 @@ class LocalExecutor(Executor):
             return Outcome(False, error=f"{task.label}: {reason}", progress=done)
 
     def describe(self) -> dict:
-        return {"executor": self.name, "timeout_s": self.timeout, "workers_started": self.started}
+        return {"executor": self.name, "timeout_s": self.timeout, "workers_started": self.started,
+                "worker_code": self.worker_code}
+
+
+def _end_group(pgid: int) -> None:
+    """Kill what is left of the worker's process group (child processes its plugins started)."""
+    try:
+        os.killpg(pgid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass

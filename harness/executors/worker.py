@@ -1,12 +1,17 @@
-"""The worker process of the ``local`` executor: ``python -m harness.executors.worker READ_FD WRITE_FD``.
+"""The worker process of the ``local`` executor: :func:`main` with ``READ_FD WRITE_FD``.
 
-It reads pickled messages from ``READ_FD`` and answers on ``WRITE_FD`` (both pipes from its
-parent); its standard output goes to the parent's standard error, so a plugin that prints cannot
-corrupt the protocol. Messages, parent to worker:
+:class:`harness.executors.local.LocalExecutor` starts it isolated (``python -I``) with its own
+``sys.path``, so the current directory cannot shadow the installed code. It reads pickled
+messages from ``READ_FD`` and answers on ``WRITE_FD`` (both pipes from its parent); its standard
+output goes to the parent's standard error, so a plugin that prints cannot corrupt the protocol.
+Messages, parent to worker:
 
-``("init", PluginOptions)``   load the plugins; answered ``("ready", {"pid", "machine"})``
+``("init", PluginOptions)``   load the plugins; answered ``("ready", {"pid", "machine", "harness",
+                              "plugins"})``: the folder ``harness`` was imported from and the
+                              source hash of each plugin loaded (``"kind:name"`` keys)
 ``("shared", key, value)``    keep a shared input (only the latest one is kept)
-``("task", task)``            run it; answered by ``("progress", n)`` messages, then
+``("task", task)``            run it: first its ``prepare(context)`` where it has one, answered
+                              ``("prepared",)``; then ``("progress", n)`` messages and
                               ``("done", value)`` or ``("failed", message)``
 ``("stop",)``                 exit
 
@@ -17,8 +22,8 @@ from __future__ import annotations
 
 import os
 import signal
-import sys
 from multiprocessing.connection import Connection
+from pathlib import Path
 
 
 def _die_with_parent(parent: int) -> None:
@@ -57,13 +62,19 @@ def serve(inbox: Connection, outbox: Connection) -> None:
                 outbox.send(("failed", f"loading plugins: {short_error(exc)}"))
                 return
             context = WorkerContext(registry, lambda n: outbox.send(("progress", n)))
-            outbox.send(("ready", {"pid": os.getpid(), "machine": machine_label()}))
+            outbox.send(("ready", {"pid": os.getpid(), "machine": machine_label(), "harness": _harness_folder(),
+                                   "plugins": {f"{r.kind}:{r.name}": r.source_hash for r in registry.records
+                                               if r.status == "ok"}}))
         elif kind == "shared":
             held = (message[1], message[2])
         elif kind == "task":
             task = message[1]
             shared = held[1] if task.shared is not None and task.shared.key == held[0] else None
             try:
+                prepare = getattr(task, "prepare", None)
+                if callable(prepare):
+                    prepare(context)
+                    outbox.send(("prepared",))
                 result = ("done", task.run(context, shared))
             except (Exception, SystemExit) as exc:
                 result = ("failed", f"{task.label}: {short_error(exc)}")
@@ -71,6 +82,12 @@ def serve(inbox: Connection, outbox: Connection) -> None:
                 outbox.send(result)
             except Exception as exc:  # an unpicklable result
                 outbox.send(("failed", f"{task.label}: its result could not be sent back: {short_error(exc)}"))
+
+
+def _harness_folder() -> str:
+    import harness
+
+    return str(Path(harness.__file__).resolve().parent)
 
 
 def main(argv: list[str]) -> int:
@@ -83,7 +100,3 @@ def main(argv: list[str]) -> int:
     except (BrokenPipeError, EOFError):
         pass
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))

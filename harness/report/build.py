@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +17,7 @@ from harness.pareto import (
     time_resolution,
 )
 from harness.render_cost import read_render_cost
+from harness.report import folder as report_folder
 from harness.report import outputs as stored
 from harness.report import pictures, plots
 from harness.report.page import esc, figure, page, table
@@ -36,7 +36,8 @@ def write_report(run_dir, registry, *, out: str | Path | None = None, metrics=No
     registry : harness.Registry
         For the metrics' directions.
     out : path, optional
-        The report folder (default ``run_dir/report``); it is replaced.
+        The report folder (default ``run_dir/report``): new, empty, or one an earlier report wrote,
+        whose files are replaced (:mod:`harness.report.folder`; anything else is a ``ValueError``).
     metrics : list of str, optional
         Error metrics of the time-against-error plots (default: the leaderboard's ranking one).
     budgets : list of float
@@ -45,10 +46,9 @@ def write_report(run_dir, registry, *, out: str | Path | None = None, metrics=No
         The leaderboard's ranking metric.
     """
     run_dir = Path(run_dir)
-    out = Path(out) if out is not None else run_dir / "report"
-    if out.exists():
-        shutil.rmtree(out)
-    (out / "img").mkdir(parents=True)
+    out = report_folder.check_report_folder(out if out is not None else run_dir / "report", run_dir)
+    foreign = report_folder.prepare(out)
+    (out / "img").mkdir(exist_ok=True)
     df = read_results(run_dir)
     manifest = read_manifest(run_dir) or {}
     render_cost = read_render_cost(run_dir)
@@ -66,6 +66,7 @@ def write_report(run_dir, registry, *, out: str | Path | None = None, metrics=No
             sections += _scene_section(run_dir, ok, task, scene, rank_by, higher, out)
     sections.append(_problems(df))
     (out / "index.html").write_text(page("denoise-bench report", sections))
+    report_folder.finish(out, foreign)
     return out / "index.html"
 
 

@@ -17,7 +17,10 @@ every kind is checked (the project's own suite does this). The ``cuda`` backend 
 Filters also get the stress battery (:mod:`harness.stress.cases`): one test per case that
 applies, with an id like ``filter:my_filter[cpu]-stress:guide-normal-nan``, each run in a worker
 process so a crash fails the test rather than the session (``stress="all"`` adds the heavy
-4K and 1,000-frame cases; ``stress=None`` leaves the battery out). A check the filter declares
+4K and 1,000-frame cases; ``stress=None`` leaves the battery out). All but one case per group of
+the battery (colour, guide, shape, sequence, policy) carry the ``slow`` marker, so that
+``pytest -m "not slow"`` is a fast tier that still runs each group for each filter (which case
+stands for its group depends on the filter's name: together the filters cover more of it). A check the filter declares
 in ``xfail_checks`` (by check name) or a case in ``stress_exempt`` runs as a strict expected
 failure with the declared reason; ``xfail`` adds expected failures by test id (for plugins
 whose spec you do not own).
@@ -26,6 +29,7 @@ whose spec you do not own).
 from __future__ import annotations
 
 import functools
+import zlib
 
 from harness.backends import cuda_available
 from harness.plugins import load_plugins
@@ -109,6 +113,31 @@ def plugin_checks(
     return items
 
 
+def fast_stress_cases(items) -> dict[str, set[str]]:
+    """The stress cases of the fast tier: for each filter, one case per group of the battery.
+
+    Parameters
+    ----------
+    items : list of PluginCheck
+
+    Returns
+    -------
+    dict
+        Filter name to the names of its cases that stay in the fast tier; the case standing for
+        a group is chosen by a hash of the filter's name among the group's cases that apply to it.
+    """
+    groups: dict[tuple[str, str], list[str]] = {}
+    for item in items:
+        if isinstance(item.check, StressCheck):
+            names = groups.setdefault((item.name, item.check.case.group), [])
+            if item.check.case.name not in names:
+                names.append(item.check.case.name)
+    fast: dict[str, set[str]] = {}
+    for (name, _), names in groups.items():
+        fast.setdefault(name, set()).add(names[zlib.crc32(name.encode()) % len(names)])
+    return fast
+
+
 def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True,
                             stress="light", xfail=None):
     """A ``pytest.mark.parametrize`` over :func:`plugin_checks`, as the argument ``plugin_check``.
@@ -132,10 +161,13 @@ def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=N
     reg = registry()
     extra = dict(xfail or {})
     items = plugin_checks(filters, metrics, renderers, scenes, cuda_checks, stress)
+    fast = fast_stress_cases(items)
     params = []
     for item in items:
         reason = item.xfail_reason(reg.get(item.kind, item.name)) or extra.pop(item.id, None)
         marks = [pytest.mark.xfail(reason=reason, strict=True)] if reason else []
+        if isinstance(item.check, StressCheck) and item.check.case.name not in fast.get(item.name, ()):
+            marks.append(pytest.mark.slow)
         params.append(pytest.param(item, id=item.id, marks=marks))
     checked = {item.id[: -len(item.check.__name__)] for item in items}  # "kind:name[backend]-" of each plugin
     unknown = sorted(i for i in extra if any(i.startswith(prefix) for prefix in checked))
@@ -144,5 +176,5 @@ def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=N
     return pytest.mark.parametrize("plugin_check", params)
 
 
-__all__ = ["PluginCheck", "StressCheck", "make_frame", "parametrize_with_checks", "plugin_checks", "registry",
-           "stress_checks"]
+__all__ = ["PluginCheck", "StressCheck", "fast_stress_cases", "make_frame", "parametrize_with_checks",
+           "plugin_checks", "registry", "stress_checks"]

@@ -56,20 +56,55 @@ def motion(array: np.ndarray, conventions: dict) -> np.ndarray:
     return (array.astype(np.float64) * scale).astype(np.float32)
 
 
-def normal(array: np.ndarray, space: str, view: np.ndarray | None) -> np.ndarray:
+def normal(array: np.ndarray, space: str, view: np.ndarray | None, encoding: str = "signed") -> np.ndarray:
     """World-space normals (H, W, 3) from ``space`` (``world``, or ``camera`` with the 4x4 world-to-camera ``view``).
 
+    ``encoding``: ``signed`` (components in [-1, 1], as stored) or ``unsigned`` (``0.5 n + 0.5``,
+    an image format without negative values): decoded as ``2 x - 1`` and renormalised (the
+    storage is often quantised), pixels stored as zero staying zero (background).
     A normal transforms with the inverse transpose of the world-to-camera rotation ``R``, so
     ``n_world`` is along ``R^T n_camera``; the result is renormalised (zero stays zero).
     """
+    if encoding == "unsigned":
+        stored = array.astype(np.float64)
+        background = ~(stored != 0).any(axis=-1, keepdims=True)
+        array = _unit(np.where(background, 0.0, 2.0 * stored - 1.0)).astype(np.float32)
     if space == "world":
         return array
     rotation = np.asarray(view, np.float64)[:3, :3]
-    world = array.astype(np.float64) @ rotation
-    length = np.linalg.norm(world, axis=-1, keepdims=True)
+    return _unit(array.astype(np.float64) @ rotation).astype(np.float32)
+
+
+def _unit(vectors: np.ndarray) -> np.ndarray:
+    """Vectors scaled to unit length (zero stays zero)."""
+    length = np.linalg.norm(vectors, axis=-1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):
-        world = np.where(length > 0, world / np.where(length > 0, length, 1.0), world)
-    return world.astype(np.float32)
+        return np.where(length > 0, vectors / np.where(length > 0, length, 1.0), vectors)
+
+
+#: median length of a capture's non-zero normals must lie within this of 1
+NORMAL_LENGTH_TOLERANCE = 0.1
+
+
+def normal_length_problem(array: np.ndarray) -> str:
+    """Why normals (H, W, 3, after conversion) are not unit length, or ``""`` when they are.
+
+    Judged by the median length of the pixels with a non-zero finite normal (background is zero;
+    averaged normals of antialiased edges may be shorter, which leaves the median near 1).
+    """
+    values = array.astype(np.float64).reshape(-1, 3)
+    values = values[np.isfinite(values).all(axis=1)]
+    length = np.linalg.norm(values, axis=1)
+    length = length[length > 0]
+    if length.size == 0:
+        return ""
+    median = float(np.median(length))
+    if abs(median - 1.0) <= NORMAL_LENGTH_TOLERANCE:
+        return ""
+    hint = ""
+    if (values >= 0).all():
+        hint = '; every component is >= 0: if the file stores 0.5 n + 0.5, set normal_encoding = "unsigned"'
+    return f"normals are not unit length (median length {median:.3g} over {length.size} pixels){hint}"
 
 
 def depth(array: np.ndarray, conventions: dict, camera: dict) -> np.ndarray:

@@ -29,6 +29,7 @@ HARNESS_CONVENTIONS = {
     "motion_units": "pixels",
     "motion_y": "down",
     "normal_space": "world",
+    "normal_encoding": "signed",
     "depth": "view_z",
     "color_space": "linear_srgb",
     "origin": "top_left",

@@ -168,7 +168,11 @@ class FrameReader:
         if channel == "motion":
             return conv.motion(array, c)
         if channel == "normal":
-            return conv.normal(array, c["normal_space"], self.capture.view(t))
+            array = conv.normal(array, c["normal_space"], self.capture.view(t), c["normal_encoding"])
+            problem = conv.normal_length_problem(array)
+            if problem:
+                raise CaptureError(f"{self.capture.path(source, t)}: layer {source.layer!r} (normal): {problem}")
+            return array
         if channel == "depth":
             return conv.depth(array, c, self.capture.camera)
         return array

@@ -24,7 +24,9 @@ KIND = "captured"
 def open_capture(path) -> Scene | None:
     """The captured scene of a folder (or sidecar file), or None when ``path`` has no sidecar.
 
-    Checks every frame's files up front: each must exist and have the size of frame 0's colour.
+    Checks every frame's files up front: each must exist inside the capture folder and have the
+    size of frame 0's colour; frame 0's reference (and its variance) layer must be there and its
+    normals unit length. Errors about a file the sidecar names start with the sidecar's line.
 
     Raises
     ------
@@ -48,13 +50,15 @@ def open_capture(path) -> Scene | None:
             if file in files:
                 continue
             if not file.is_file():
-                raise CaptureError(f"{file}: missing file for frame {t} (expected by {sidecar.name})")
+                what = "the reference" if source.channel == "reference" else f"channel {source.channel!r}"
+                raise CaptureError(f"{capture.where(source.channel)}: {file}: missing file for frame {t} ({what})")
             size = _size(file)
             if size != (width, height):
                 raise CaptureError(
                     f"{file}: {size[0]}x{size[1]} pixels, but the colour of frame 0 is {width}x{height}"
                 )
             files.append(file)
+    _check_first_frame(capture, reader, sources, reference)
     digest = hashlib.sha256()
     for file in files:
         digest.update(str(file.relative_to(capture.folder)).encode())
@@ -68,6 +72,22 @@ def open_capture(path) -> Scene | None:
         "files_sha256": digest.hexdigest(),
     }
     return _scene(capture, params, (width, height))
+
+
+def _check_first_frame(capture: Capture, reader: FrameReader, sources: dict, reference) -> None:
+    """Read what only a read can check, once, at open: the reference's layers and the normals of frame 0."""
+    checks = []
+    if reference is not None:
+        checks.append(("reference", reader.reference))
+        if capture.reference_variance is not None:
+            checks.append(("reference", reader.reference_variance))
+    if "normal" in sources:
+        checks.append(("normal", lambda t: reader.read(t, {"normal": sources["normal"]})))
+    for key, read in checks:
+        try:
+            read(0)
+        except CaptureError as exc:
+            raise CaptureError(f"{capture.where(key)}: {exc}") from None
 
 
 def _size(file) -> tuple[int, int]:

@@ -4,12 +4,20 @@ The sidecar (``capture.toml`` or ``capture.json`` in the capture folder) says wh
 layers hold each harness channel and which conventions they follow; ``docs/captured.md`` is its
 reference. :func:`load_sidecar` turns it into a :class:`Capture` with every preset default
 resolved, or raises :class:`CaptureError` with one line naming the sidecar and the problem.
+
+A sidecar is untrusted input: a file pattern takes the frame number only (``{frame}`` or an
+integer format such as ``{frame:04d}``; no attribute or item access), and every file it names
+must lie inside the capture folder once resolved, unless the environment variable
+:data:`ALLOW_ENV` is ``1``.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import re
+import string
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +30,10 @@ from .presets import HARNESS_CONVENTIONS, PRESETS
 
 #: sidecar file names looked for in a capture folder, in this order
 SIDECAR_NAMES = ("capture.toml", "capture.json")
+#: set to ``1`` to let a sidecar name files outside its capture folder
+ALLOW_ENV = "DENOISE_HARNESS_ALLOW_OUTSIDE_FILES"
+#: the format specs a file pattern's ``{frame}`` may take: integers, optionally zero-padded
+FRAME_SPEC = re.compile(r"0?[0-9]{0,3}d?")
 
 TOP_KEYS = frozenset({
     "format", "version", "name", "description", "preset", "frames", "first_frame", "file", "spp",
@@ -38,6 +50,7 @@ CONVENTION_VALUES = {
     "motion_units": ("pixels", "uv", "ndc"),
     "motion_y": ("down", "up"),
     "normal_space": ("world", "camera"),
+    "normal_encoding": ("signed", "unsigned"),
     "depth": ("view_z", "ray_distance", "ndc_gl", "ndc_d3d"),
     "color_space": ("linear_srgb", "acescg"),
     "origin": ("top_left", "bottom_left"),
@@ -122,10 +135,29 @@ class Capture:
     frame_meta: list = field(default_factory=list)
     tags: tuple = ()
     tasks: tuple = ("denoise",)
+    lines: dict = field(default_factory=dict)
 
     def path(self, source: Source, t: int) -> Path:
-        """The file holding ``source`` in frame ``t`` (0-based)."""
-        return self.folder / source.file.format(frame=self.first_frame + t)
+        """The file holding ``source`` in frame ``t`` (0-based): inside the capture folder.
+
+        Raises
+        ------
+        CaptureError
+            The file lies outside the folder (and :data:`ALLOW_ENV` is not ``1``).
+        """
+        name = source.file.format(frame=self.first_frame + t)
+        path = self.folder / name
+        if os.environ.get(ALLOW_ENV, "") != "1":
+            root, target = self.folder.resolve(), path.resolve()
+            if root not in target.parents:
+                raise CaptureError(f"{self.where(source.channel)}: the file {name!r} of {_what(source.channel)} is "
+                                   f"outside the capture folder {self.folder} (set {ALLOW_ENV}=1 to allow it)")
+        return path
+
+    def where(self, key: str) -> str:
+        """The sidecar and, where known, the line that declares ``key`` (``capture.toml:12``)."""
+        line = self.lines.get(key)
+        return f"{self.sidecar}:{line}" if line else str(self.sidecar)
 
     def view(self, t: int) -> np.ndarray | None:
         """World-to-camera matrix of frame ``t`` (its own, else the sidecar's camera), or None."""
@@ -163,6 +195,24 @@ def find_sidecar(path: Path) -> Path | None:
         if (path / name).is_file():
             return path / name
     return None
+
+
+def _what(channel: str) -> str:
+    return "the reference" if channel == "reference" else f"channel {channel!r}"
+
+
+def key_lines(text: str) -> dict:
+    """Line numbers (1-based) of the first line declaring each key or table of a sidecar's text.
+
+    Recognises ``[name]``, ``name = ...`` (TOML) and ``"name": ...`` (JSON), so channels (``color
+    = ...``) and ``reference`` are found in either form.
+    """
+    lines: dict = {}
+    for number, line in enumerate(text.splitlines(), 1):
+        found = re.match(r'\s*(?:\[+\s*"?([A-Za-z_][\w.]*)"?\s*\]|"?([A-Za-z_]\w*)"?\s*[=:])', line)
+        if found:
+            lines.setdefault(found.group(1) or found.group(2), number)
+    return lines
 
 
 def load_sidecar(sidecar: Path) -> Capture:
@@ -215,6 +265,7 @@ def load_sidecar(sidecar: Path) -> Capture:
         frame_meta=frame_meta,
         tags=tuple(sorted(_strings(where, "tags", data.get("tags", [])))),
         tasks=tasks,
+        lines=key_lines(sidecar.read_text(errors="replace")),
     )
 
 
@@ -279,10 +330,7 @@ def _source(where: str, channel: str, entry, default_file: str | None, required:
     file = entry.get("file", default_file)
     if not isinstance(file, str) or not file:
         raise CaptureError(f"{where}: channel {channel!r} names no file (give 'file' here or at the top level)")
-    try:
-        file.format(frame=0)
-    except (KeyError, IndexError, ValueError) as exc:
-        raise CaptureError(f"{where}: file pattern {file!r} of channel {channel!r} is not valid: {exc}") from None
+    _check_pattern(where, channel, file)
     layer = entry.get("layer", "")
     if not isinstance(layer, str):
         raise CaptureError(f"{where}: the layer of channel {channel!r} must be a string, got {layer!r}")
@@ -296,6 +344,21 @@ def _source(where: str, channel: str, entry, default_file: str | None, required:
             )
         components = tuple(components)
     return Source(channel, file, layer, components, required)
+
+
+def _check_pattern(where: str, channel: str, file: str) -> None:
+    """A file pattern may hold ``{frame}`` with an integer format spec only (``{frame:04d}``)."""
+    try:
+        fields = list(string.Formatter().parse(file))
+    except ValueError as exc:
+        raise CaptureError(f"{where}: file pattern {file!r} of {_what(channel)} is not valid: {exc}") from None
+    for _, name, spec, conversion in fields:
+        if name is None:
+            continue
+        if name != "frame" or conversion is not None or not FRAME_SPEC.fullmatch(spec or ""):
+            field_text = name + (f"!{conversion}" if conversion else "") + (f":{spec}" if spec else "")
+            raise CaptureError(f"{where}: file pattern {file!r} of {_what(channel)} may only hold {{frame}} or an "
+                               f"integer format of it such as {{frame:04d}}, not {{{field_text}}}")
 
 
 def _sources(where: str, declared, preset: dict, default_file: str | None) -> dict:

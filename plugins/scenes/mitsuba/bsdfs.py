@@ -28,6 +28,7 @@ import numpy as np
 
 from harness import Material
 
+from .files import scene_file
 from .xmlscene import color_value, find, get_bool, get_float, get_string, transform, warn
 
 # Mitsuba 3's named indices of refraction (its ``ior.h`` table)
@@ -138,7 +139,7 @@ def texture(node: ET.Element, ctx: BsdfContext, default):
     """A ``bitmap`` texture as a description; other texture types are approximated (warned)."""
     kind = node.get("type")
     if kind == "bitmap":
-        path = ctx.folder / (get_string(node, "filename") or "")
+        path = scene_file(node, ctx.folder)
         su = get_float(node, "uscale", 1.0)
         sv = get_float(node, "vscale", 1.0)
         ou = get_float(node, "uoffset", 0.0)

@@ -9,6 +9,7 @@ import numpy as np
 
 from harness import CameraPath, Environment, Sun, read_texture
 
+from .files import scene_file
 from .xmlscene import find, get_color, get_float, get_int, get_string, transform, vector, warn
 
 # The path tracer has no delta lights: Mitsuba's directional light becomes a disc this small
@@ -30,7 +31,7 @@ def environment_and_sun(node: ET.Element, folder: Path) -> tuple[Environment | N
     if kind == "envmap":
         matrix = transform(find(node, "toWorld"))
         scale = get_float(node, "scale", 1.0)
-        image = read_texture(folder / get_string(node, "filename"))
+        image = read_texture(scene_file(node, folder))
         image = envmap_to_harness(image, matrix[:3, :3])
         return Environment(kind="map", image=image, radiance=(scale, scale, scale)), None
     if kind == "directional":

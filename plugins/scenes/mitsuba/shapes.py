@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
+import struct
 import xml.etree.ElementTree as ET
+import zlib
 from pathlib import Path
 
 import numpy as np
 import pyvista as pv
 
+from .files import scene_file
 from .meshio import MeshData, read_obj, read_ply, read_serialized
-from .xmlscene import find, get_bool, get_float, get_int, get_string, transform, vector, warn
+from .xmlscene import find, get_bool, get_float, get_int, transform, vector, warn
 
 
 def _grid(nu: int, nv: int, f) -> MeshData:
@@ -83,19 +86,15 @@ def cube() -> MeshData:
 
 
 def load_shape(node: ET.Element, folder: Path, serialized_cache: dict) -> MeshData | None:
-    """Triangles of a ``<shape>`` element in world space, or None (warned) when unsupported."""
+    """Triangles of a ``<shape>`` element in world space, or None (warned) when unsupported.
+
+    Mesh files are read inside the scene folder only (:func:`.files.scene_file`); a mesh file
+    that holds no triangle, or that cannot be parsed, is a ``ValueError`` naming the shape and file.
+    """
     kind = node.get("type")
     matrix = transform(find(node, "toWorld"))
-    if kind == "obj":
-        mesh = read_obj(folder / get_string(node, "filename"), get_bool(node, "flipTexCoords", True))
-    elif kind == "ply":
-        mesh = read_ply(folder / get_string(node, "filename"))
-    elif kind == "serialized":
-        path = folder / get_string(node, "filename")
-        index = get_int(node, "shapeIndex", 0)
-        if (path, index) not in serialized_cache:
-            serialized_cache[(path, index)] = read_serialized(path, index)
-        mesh = serialized_cache[(path, index)]
+    if kind in ("obj", "ply", "serialized"):
+        mesh = _mesh_file(node, scene_file(node, folder), kind, serialized_cache)
     elif kind == "rectangle":
         mesh = rectangle()
     elif kind == "cube":
@@ -122,6 +121,29 @@ def load_shape(node: ET.Element, folder: Path, serialized_cache: dict) -> MeshDa
         corners, uvs = _reverse(corners), _reverse(uvs)
         normals = None if normals is None else -_reverse(normals)
     return MeshData(corners, normals, uvs)
+
+
+def _mesh_file(node: ET.Element, path: Path, kind: str, serialized_cache: dict) -> MeshData:
+    """The triangles of a mesh file; an unreadable, unparseable or empty file is a ``ValueError``."""
+    try:
+        if kind == "obj":
+            mesh = read_obj(path, get_bool(node, "flipTexCoords", True))
+        elif kind == "ply":
+            mesh = read_ply(path)
+        else:
+            index = get_int(node, "shapeIndex", 0)
+            if (path, index) not in serialized_cache:
+                serialized_cache[(path, index)] = read_serialized(path, index)
+            mesh = serialized_cache[(path, index)]
+    except (OSError, ValueError, IndexError, KeyError, struct.error, zlib.error) as exc:
+        raise ValueError(f"shape {node.get('id') or kind!r}: cannot read {kind} mesh {path.name}: "
+                         f"{type(exc).__name__}: {exc}") from None
+    if len(mesh.corners) == 0:
+        raise ValueError(f"shape {node.get('id') or kind!r}: {kind} mesh {path.name} holds no triangle "
+                         "(not a mesh file?)")
+    if not np.isfinite(mesh.corners).all():
+        raise ValueError(f"shape {node.get('id') or kind!r}: {kind} mesh {path.name} has non-finite vertex positions")
+    return mesh
 
 
 def _reverse(corner_array: np.ndarray | None) -> np.ndarray | None:
