@@ -4,8 +4,10 @@ Usage::
 
     python benchmarks/bench_mitsuba.py agree [--scenes classroom living-room sponza]
                                              [--width 160 --height 90 --spp 256 --seed 1]
-    python benchmarks/bench_mitsuba.py speed [--scenes sponza living-room] [--width 1280 --height 720]
+    python benchmarks/bench_mitsuba.py speed [--scenes classroom living-room sponza] [--width 1280 --height 720]
                                              [--spp 1] [--rounds 3] [--workers 4 16]
+                                             [--variant llvm_ad_rgb|cuda_ad_rgb|scalar_rgb]
+                                             [--renderers pathtracer mitsuba]
     python benchmarks/bench_mitsuba.py sequence [--scenes living-room] [--frames 8] [--width 320 --height 180]
                                                 [--export FOLDER] [--reference-spp 64]
 
@@ -19,13 +21,17 @@ errors, from the variance channels, below 1% of the mean): median, 5th and 95th 
 the share of pixels in objects within 2%. The loader's approximations (what the path tracer renders
 differently from Mitsuba 3) are counted; they explain the outliers.
 
-``speed``: frames of ``spp`` samples at ``width`` x ``height`` rendered by both renderers in turn
-(one warm-up frame each, then ``rounds`` rounds alternating pathtracer and mitsuba, so both see the
-same machine load), wall clock and process CPU time per frame (median), paths per second (wall),
-and the time of a 4096-spp reference frame projected from it. Then the ``paper`` profile's
-references of the scenes (one 1280x720 frame of 4096 spp for an XML scene) on 1 and on
-``--workers`` CPU workers of the same kind through Dask (references split into independent sample
-batches, so N workers divide the time by about N; the cluster's overhead is not included).
+``speed``: frames of ``spp`` samples at ``width`` x ``height`` rendered by the renderers in turn
+(one warm-up frame each, then ``rounds`` rounds alternating them, so all see the same machine
+load), wall clock and process CPU time per frame (median), paths per second (wall), and the time
+of a 4096-spp 1280x720 reference frame projected from it, alone and on ``--workers`` workers of
+the same kind through Dask (references split into independent sample batches, so N workers
+divide the time by about N; the cluster's overhead is not included). ``--variant`` is the
+``mitsuba`` renderer's Mitsuba variant (``cuda_ad_rgb`` on a GPU machine; give it more ``--spp``
+there, a 1-spp 1280x720 frame is too small to fill a GPU). Besides the table, each (scene,
+renderer) prints one machine-readable line ``RESULT {json}`` with the scene, renderer, variant,
+device, resolution, spp, rounds, seconds per frame (wall and CPU), paths per second and the
+projected reference seconds.
 
 ``sequence``: the scene with a camera path of this script (a dolly of 1% of the scene's size per
 frame along the view and a pan of 1 degree per frame) rendered by the ``mitsuba`` renderer, 1 spp:
@@ -42,7 +48,11 @@ that is absent is skipped with a message.
 from __future__ import annotations
 
 import argparse
+import json
+import os
+import platform
 import statistics
+import subprocess
 import time
 import warnings
 from pathlib import Path
@@ -53,6 +63,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT.parent / "shared" / "scenes"
 GBUFFER = ("position", "normal", "albedo", "depth", "object_id")
 REFERENCE_SPP = 4096
+REFERENCE_PIXELS = 1280 * 720
 
 
 def shared_scene(name: str):
@@ -133,23 +144,61 @@ def radiance_lines(scene, ours, theirs) -> None:
           f"{np.percentile(ratios, 95) if len(ratios) else np.nan:.4f}, pixels in objects within 2%: {within:.3f}")
 
 
+def renderer_list(names, variant: str):
+    """The renderers to time, by name, the ``mitsuba`` one with ``variant``."""
+    made = {}
+    for name in names:
+        if name == "pathtracer":
+            from plugins.renderers.pathtracer import PathTracer
+
+            made[name] = PathTracer()
+        else:
+            from plugins.renderers.mitsuba import MitsubaRenderer
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                made[name] = MitsubaRenderer(variant=variant)
+    return made
+
+
+def device_name(variant: str) -> str:
+    """The GPU (``nvidia-smi``) for a CUDA variant, else the CPU model and the cores used."""
+    if variant.startswith("cuda"):
+        try:
+            done = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True,
+                                  text=True, timeout=30)
+            return done.stdout.strip().splitlines()[0]
+        except (OSError, IndexError, subprocess.TimeoutExpired):
+            return "a CUDA GPU"
+    from harness import compute_threads
+
+    model = platform.processor() or "CPU"
+    try:
+        model = next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                     if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    return f"{model}, {compute_threads()} threads"
+
+
 def speed(args) -> None:
-    both = renderers()
+    timed = renderer_list(args.renderers, args.variant)
     size = (args.width, args.height)
     paths = args.width * args.height * args.spp
-    print(f"{args.width}x{args.height}, {args.spp} spp per frame, {args.rounds} rounds alternating; mitsuba variant "
-          f"{both['mitsuba'].variant}")
+    names = {r: (f"mitsuba {renderer.variant}" if r == "mitsuba" else r) for r, renderer in timed.items()}
+    print(f"{args.width}x{args.height}, {args.spp} spp per frame, {args.rounds} rounds alternating "
+          f"{', '.join(names.values())}; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     for name in args.scenes:
         scene = shared_scene(name)
         if scene is None:
             continue
-        times = {r: [] for r in both}
+        times = {r: [] for r in timed}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            for renderer in both.values():  # warm-up: loading, BVH, compilation
-                renderer.render(scene, 0, spp=1, seed=0, resolution=size)
+            for renderer in timed.values():  # warm-up: loading, BVH, compilation
+                renderer.render(scene, 0, spp=args.spp, seed=0, resolution=size)
             for k in range(args.rounds):
-                for r, renderer in both.items():
+                for r, renderer in timed.items():
                     wall, cpu = time.perf_counter(), time.process_time()
                     renderer.render(scene, 0, spp=args.spp, seed=k + 1, resolution=size)
                     times[r].append((time.perf_counter() - wall, time.process_time() - cpu))
@@ -158,14 +207,22 @@ def speed(args) -> None:
             wall = statistics.median(s[0] for s in samples)
             cpu = statistics.median(s[1] for s in samples)
             rates[r] = paths / wall
-            reference = wall / args.spp * REFERENCE_SPP * (1280 * 720) / (args.width * args.height)
-            print(f"{name:<12} {r:<10} {wall:7.2f} s wall {cpu:7.2f} s CPU per frame, {paths / wall / 1e6:6.3f} "
-                  f"Mpaths/s; a {REFERENCE_SPP}-spp 1280x720 reference frame: {reference / 3600:6.2f} h")
-        print(f"{name:<12} mitsuba / pathtracer paths per second: {rates['mitsuba'] / rates['pathtracer']:.2f}")
+            reference = REFERENCE_PIXELS * REFERENCE_SPP / rates[r]
+            variant = getattr(timed[r], "variant", None)
+            print(f"{name:<12} {names[r]:<24} {wall:8.3f} s wall {cpu:8.3f} s CPU per frame, {rates[r] / 1e6:7.3f} "
+                  f"Mpaths/s; a {REFERENCE_SPP}-spp 1280x720 reference frame: {reference / 3600:7.3f} h")
+            record = {"scene": name, "renderer": r, "variant": variant, "device": device_name(variant or "cpu"),
+                      "width": args.width, "height": args.height, "spp": args.spp, "rounds": args.rounds,
+                      "wall_s_per_frame": round(wall, 4), "cpu_s_per_frame": round(cpu, 4),
+                      "paths_per_s": round(rates[r], 1), "reference_s_1280x720_4096spp": round(reference, 1),
+                      "load_average": round(os.getloadavg()[0], 2)}
+            print("RESULT " + json.dumps(record), flush=True)
+        if "mitsuba" in rates and "pathtracer" in rates:
+            print(f"{name:<12} mitsuba / pathtracer paths per second: {rates['mitsuba'] / rates['pathtracer']:.2f}")
         for r, rate in rates.items():
-            hours = 1280 * 720 * REFERENCE_SPP / rate / 3600
+            hours = REFERENCE_PIXELS * REFERENCE_SPP / rate / 3600
             spread = ", ".join(f"{n} workers {hours / n:.2f} h" for n in args.workers)
-            print(f"  paper profile, {name} references (1 frame) by {r}: {hours:.2f} h on this machine; {spread}")
+            print(f"  a 4096-spp 1280x720 reference frame of {name} by {names[r]}: {hours:.3f} h here; {spread}")
 
 
 def camera_path(scene, frames: int):
@@ -238,7 +295,10 @@ def main() -> None:
     a.add_argument("--spp", type=int, default=256)
     a.add_argument("--seed", type=int, default=1)
     s = sub.add_parser("speed")
-    s.add_argument("--scenes", nargs="+", default=["sponza", "living-room"])
+    s.add_argument("--scenes", nargs="+", default=["classroom", "living-room", "sponza"])
+    s.add_argument("--renderers", nargs="+", choices=["pathtracer", "mitsuba"], default=["pathtracer", "mitsuba"])
+    s.add_argument("--variant", default="llvm_ad_rgb",
+                   help="Mitsuba variant: llvm_ad_rgb, cuda_ad_rgb, scalar_rgb (or auto, llvm, cuda, scalar)")
     s.add_argument("--width", type=int, default=1280)
     s.add_argument("--height", type=int, default=720)
     s.add_argument("--spp", type=int, default=1)
