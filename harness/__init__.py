@@ -1,6 +1,9 @@
 """denoise-harness: a plugin-based benchmark harness for real-time Monte Carlo denoisers.
 
-This module is the public API. Plugins import only names from here.
+This module is the public API. Plugins import only names from here, and the public submodule
+``kernels``, imported where it is used (``from harness import kernels``: building blocks of Numba
+kernels, fast exp/log, bit casts, the task counter, the small-image serial guard, the backend
+handle).
 """
 
 from harness.backends import available_backends, cuda_available, cuda_simulated, load_backend
@@ -41,6 +44,7 @@ from harness.scene import (
 )
 from harness.specs import TASKS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
 from harness.threads import compute_threads
+from harness.transforms import rotation, translation
 
 __version__ = "0.1.0"
 
@@ -86,12 +90,15 @@ __all__ = [
     "encode_srgb",
     "expected_shape",
     "hookimpl",
+    "kernels",
     "load_backend",
     "load_plugins",
     "read_channels",
     "read_size",
     "read_texture",
+    "rotation",
     "srgb_to_linear",
+    "translation",
     "write_capture",
     "write_channels",
     "write_exr",

@@ -1,8 +1,9 @@
-"""Compute backends: which are available on this machine."""
+"""Compute backends: which are available on this machine, and a filter's handle on its own."""
 
 from __future__ import annotations
 
 import os
+from typing import Any
 
 
 def cuda_simulated() -> bool:
@@ -39,12 +40,48 @@ def resolve_backend(requested: str, supported) -> str | None:
     return "cpu" if "cpu" in supported else None
 
 
-def load_backend(package: str, backend: str, supported, *, owner: str):
+class BackendHandle:
+    """A filter's compute backend (its module of kernels, or a library's device object), shared by
+    every copy of the filter.
+
+    Attribute access reaches the wrapped object (``handle.run(...)`` calls ``target.run``);
+    ``copy.copy`` and ``copy.deepcopy`` return the handle itself. A filter that keeps its
+    backend in a handle therefore deep-copies with the default ``copy.deepcopy`` (the harness
+    copies temporal filters to time them from the same state), where a module or a native
+    object would fail or be duplicated.
+
+    Parameters
+    ----------
+    target : object
+        What the handle stands for; also its attribute ``target``.
+    """
+
+    __slots__ = ("target",)
+
+    def __init__(self, target: Any):
+        self.target = target
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "target":  # not set yet (a copy made without __init__)
+            raise AttributeError(name)
+        return getattr(self.target, name)
+
+    def __copy__(self) -> BackendHandle:
+        return self
+
+    def __deepcopy__(self, memo) -> BackendHandle:
+        return self
+
+    def __repr__(self) -> str:
+        return f"BackendHandle({self.target!r})"
+
+
+def load_backend(package: str, backend: str, supported, *, owner: str) -> BackendHandle:
     """The backend module of a filter: the one dispatch convention of every built-in filter.
 
     A filter package keeps each backend's kernels in a module named after it (``cpu.py``,
     ``cuda.py``) with the same entry points; the filter object calls this once, in its
-    constructor, and keeps the module.
+    constructor, and keeps the handle (copies of the filter share it).
 
     Parameters
     ----------
@@ -59,8 +96,8 @@ def load_backend(package: str, backend: str, supported, *, owner: str):
 
     Returns
     -------
-    module
-        ``importlib.import_module(f"{package}.{backend}")``.
+    BackendHandle
+        On ``importlib.import_module(f"{package}.{backend}")``: its attributes are the module's.
 
     Raises
     ------
@@ -76,4 +113,4 @@ def load_backend(package: str, backend: str, supported, *, owner: str):
         raise ValueError(f"{owner}: unsupported backend {backend!r}; choose from {supported}")
     if backend == "cuda" and not cuda_available():
         raise RuntimeError(f"{owner}: backend 'cuda' needs a CUDA GPU or NUMBA_ENABLE_CUDASIM=1")
-    return importlib.import_module(f"{package}.{backend}")
+    return BackendHandle(importlib.import_module(f"{package}.{backend}"))

@@ -1,6 +1,7 @@
 """Peak memory of a piece of work, measured in the process that runs it.
 
-Two measures, taken around one call of ``work`` (:func:`peak_memory`):
+Two measures, taken around one call of ``work`` (:func:`peak_memory`; the ``rss`` one alone,
+cheaper, with :func:`rss_mark` before the work and :func:`rss_rise` after it):
 
 ``traced``
     the peak of the bytes allocated through Python's allocators during the call, above what
@@ -78,13 +79,30 @@ def _trim() -> None:
         pass
 
 
-def _reset_high_water() -> bool:
-    """Reset ``VmHWM`` to the current resident size (Linux >= 4.0); False where it cannot be."""
+def rss_mark() -> float:
+    """Reset the resident set size's high-water mark (``VmHWM``) to the current resident size.
+
+    Returns
+    -------
+    float
+        That size in bytes, NaN where the mark cannot be reset (not Linux >= 4.0); pass it to
+        :func:`rss_rise`.
+    """
     try:
         _CLEAR_REFS.write_text("5")
     except OSError:
-        return False
-    return not math.isnan(_status_kb("VmHWM"))
+        return math.nan
+    if math.isnan(_status_kb("VmHWM")):
+        return math.nan
+    return _status_kb("VmRSS") * 1024.0
+
+
+def rss_rise(mark: float) -> float:
+    """Bytes by which the high-water mark rose above ``mark`` (from :func:`rss_mark`), at least 0;
+    NaN where ``mark`` is."""
+    if math.isnan(mark):
+        return math.nan
+    return max(_status_kb("VmHWM") * 1024.0 - mark, 0.0)
 
 
 def peak_memory(work: Callable[[], Any]) -> tuple[Any, MemoryPeak]:
@@ -98,8 +116,7 @@ def peak_memory(work: Callable[[], Any]) -> tuple[Any, MemoryPeak]:
     """
     gc.collect()
     _trim()
-    resettable = _reset_high_water()
-    before = _status_kb("VmRSS")
+    mark = rss_mark()
     was_tracing = tracemalloc.is_tracing()
     if not was_tracing:
         tracemalloc.start()
@@ -111,9 +128,7 @@ def peak_memory(work: Callable[[], Any]) -> tuple[Any, MemoryPeak]:
     finally:
         if not was_tracing:
             tracemalloc.stop()
-    high = _status_kb("VmHWM")
-    rss = (high - before) * 1024.0 if resettable else math.nan
-    return result, MemoryPeak(traced=max(int(peak - start), 0), rss=max(rss, 0.0) if not math.isnan(rss) else rss)
+    return result, MemoryPeak(traced=max(int(peak - start), 0), rss=rss_rise(mark))
 
 
-__all__ = ["MemoryPeak", "peak_memory"]
+__all__ = ["MemoryPeak", "peak_memory", "rss_mark", "rss_rise"]

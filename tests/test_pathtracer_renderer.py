@@ -10,7 +10,6 @@ import pyvista as pv
 from harness import CHANNELS, CameraPath, Environment, Material, Scene, SceneObject, Sun, load_plugins
 from plugins.renderers.pathtracer import PathTracer
 from plugins.renderers.pathtracer.rng import stream_key, uniform
-from plugins.renderers.pathtracer.schedule import take
 from tests.pathtracer_scenes import box_scene, furnace_scene
 
 ALL = frozenset(CHANNELS)
@@ -148,24 +147,6 @@ def test_primary_rays_are_the_cameras(box):
         o, d = box.camera.primary_rays(frame, w, h)
         np.testing.assert_array_equal(setup.origins, o.reshape(-1, 3))
         np.testing.assert_array_equal(setup.dirs, d.reshape(-1, 3))
-
-
-@numba.njit(parallel=True)
-def _take_all(tasks, workers):
-    counter = np.zeros(1, np.int64)
-    taken = np.zeros(tasks, np.int64)
-    for _ in numba.prange(workers):
-        while True:
-            task = take(counter)
-            if task >= tasks:
-                break
-            taken[task] += 1
-    return taken
-
-
-def test_task_counter_hands_out_every_task_once():
-    for workers in (1, 2, 7):
-        assert (_take_all(100_000, workers) == 1).all()
 
 
 def test_eight_then_eight_more_equals_sixteen(box):

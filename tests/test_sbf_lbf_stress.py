@@ -225,30 +225,3 @@ def test_sbf_adaptive_with_sampler_on_small_and_odd_frames(shape):
     out = f(sampler.frame, sampler=sampler)
     assert out.shape == (h, w, 3) and np.isfinite(out).all()
     assert sampler.samples_used - before == f.samples_added <= round(4.0 * h * w)
-
-
-# --- the vectorisable exp both filters use --------------------------------------------------------
-
-@pytest.mark.parametrize("module", ["plugins.filters.sbf.fastexp", "plugins.filters.lbf.fastexp"])
-def test_fast_exp_accuracy_inside_a_fastmath_loop(module):
-    """``exp_neg`` within a few float32 ulps of exp(-d) on [0, 87], also when inlined in a
-    vectorised fastmath loop (reassociation must not undo the Cody-Waite split)."""
-    import importlib
-
-    from numba import njit
-
-    exp_neg = importlib.import_module(module).exp_neg
-
-    @njit(fastmath=True)
-    def apply(d, out):
-        for j in range(d.size):
-            out[j] = exp_neg(d[j])
-
-    d = np.concatenate([np.linspace(0, 87, 200001), [1e-30, 0.5, 40.0, 86.99]]).astype(np.float32)
-    out = np.empty_like(d)
-    apply(d, out)
-    exact = np.exp(-d.astype(np.float64))
-    assert np.max(np.abs(out / exact - 1)) < 3e-7
-    big = np.array([87.0, 100.0, 1e30, np.float32(3.4e38)], np.float32)
-    apply(big, out[:4])
-    np.testing.assert_allclose(out[:4], np.exp(-87.0), rtol=1e-6)

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness import CHANNELS, Frame, FrameMeta, load_plugins
+from harness import CHANNELS, Frame, FrameMeta, kernels, load_plugins
 
 ROOT = Path(__file__).resolve().parents[1]
 WALL, OBJECT = 0, 2  # object ids of the synthetic renderer's regions
@@ -383,10 +383,8 @@ def test_parallel_path_equals_one_thread(registry, renderer):
     does not depend on the number of threads (no sum is split between threads)."""
     from numba import get_num_threads, set_num_threads
 
-    from plugins.filters.svgf.pipeline import SERIAL_MAX_PIXELS
-
     seq = _sequence(registry, renderer, "synthetic-moving", 2, (256, 257), seed=4)
-    assert 256 * 257 >= SERIAL_MAX_PIXELS
+    assert 256 * 257 >= kernels.SERIAL_MAX_PIXELS
     threads = get_num_threads()
     outs = []
     for n in (threads, 1):

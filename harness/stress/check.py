@@ -10,12 +10,12 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
 from harness.buffers import NonFiniteError, check_filter_output
 from harness.errors import short_error
+from harness.memory import rss_mark, rss_rise
 from harness.stress.cases import Sequence, StressCase
 from harness.stress.properties import Failure, Monitor
 
@@ -180,43 +180,28 @@ def _why(exc: BaseException) -> str:
 
 
 class _PeakMemory:
-    """The largest growth of the resident set size during a filter call (Linux: ``/proc/self``; NaN elsewhere).
+    """The largest growth of the resident set size during a filter call (:func:`harness.memory.rss_mark`;
+    NaN where it cannot be measured).
 
     Building the case's frames is outside the calls, so it does not count.
     """
 
-    STATUS = Path("/proc/self/status")
-    CLEAR = Path("/proc/self/clear_refs")
-
     def __init__(self):
         self.peak = 0.0
-        self.known = self.CLEAR.exists()
-        self.start = math.nan
-
-    def _read(self, key: str) -> float:
-        try:
-            for line in self.STATUS.read_text().splitlines():
-                if line.startswith(key + ":"):
-                    return float(line.split()[1]) / 1024.0
-        except OSError:
-            pass
-        return math.nan
+        self.known = True
+        self.mark = math.nan
 
     def before_call(self) -> None:
-        if not self.known:
-            return
-        try:  # writing 5 resets the peak (VmHWM) to the current size
-            self.CLEAR.write_text("5")
-        except OSError:
-            self.known = False
-        self.start = self._read("VmRSS")
+        if self.known:
+            self.mark = rss_mark()
 
     def after_call(self) -> float:
         """Growth during the call just made, MiB (and keep the largest)."""
-        if not self.known:
-            return math.nan
-        growth = max(self._read("VmHWM") - self.start, 0.0)
-        self.peak = max(self.peak, growth)
+        growth = rss_rise(self.mark) / 2**20 if self.known else math.nan
+        if math.isnan(growth):
+            self.known = False
+        else:
+            self.peak = max(self.peak, growth)
         return growth
 
     def growth_mb(self) -> float:

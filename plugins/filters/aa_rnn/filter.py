@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from harness import load_backend
@@ -59,13 +57,6 @@ class AARNNFilter:
     def reset(self) -> None:
         """Forget the recurrent state (new sequence or camera cut)."""
         self._state = None
-
-    def __deepcopy__(self, memo):
-        """A copy with its own state and network (the backend module is shared, not copied)."""
-        clone = copy.copy(self)
-        clone.model = copy.deepcopy(self.model, memo)
-        clone._state = None if self._state is None else self._state.clone()
-        return clone
 
     def __call__(self, frame, sampler=None) -> np.ndarray:
         """Anti-alias one frame of a sequence; returns (H, W, 3) float32."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import CameraPath, Environment, Material, Scene, SceneObject, Sun
+from harness import CameraPath, Environment, Material, Scene, SceneObject, Sun, rotation, translation
 
 #: name prefix of every generated scene
 PREFIX = "aa_rnn-train"
@@ -137,13 +137,6 @@ def _shape(rng: np.random.Generator, pv):
     return _grass(rng, pv), kind, False
 
 
-def _rotation_y(degrees: float) -> np.ndarray:
-    t = np.radians(degrees)
-    m = np.eye(4)
-    m[0, 0], m[0, 2], m[2, 0], m[2, 2] = np.cos(t), np.sin(t), -np.sin(t), np.cos(t)
-    return m
-
-
 def make_scene(seed: int, frames: int, resolution: tuple) -> Scene:
     """The random training scene of ``seed`` (a fresh :class:`harness.Scene`).
 
@@ -180,10 +173,10 @@ def make_scene(seed: int, frames: int, resolution: tuple) -> Scene:
         if k in moving:
             velocity = rng.normal(0.0, 0.12, 3) * np.array([1.0, 0.2, 1.0])
             turn = float(rng.normal(0.0, 8.0))
-            transforms = np.stack([_translation(position + t * velocity) @ _rotation_y(spin + t * turn)
+            transforms = np.stack([translation(position + t * velocity) @ rotation((0.0, 1.0, 0.0), spin + t * turn)
                                    for t in range(frames)])
         else:
-            mesh = mesh.transform(_translation(position) @ _rotation_y(spin), inplace=False)
+            mesh = mesh.transform(translation(position) @ rotation((0.0, 1.0, 0.0), spin), inplace=False)
         objects.append(SceneObject(f"{kind}{k}", _finish(mesh), material=len(materials) - 1, transforms=transforms))
     elevation = np.radians(rng.uniform(15.0, 75.0))
     azimuth = rng.uniform(0.0, 2.0 * np.pi)
@@ -195,12 +188,6 @@ def make_scene(seed: int, frames: int, resolution: tuple) -> Scene:
     return Scene(name=f"{PREFIX}-{seed}", frame_count=frames, resolution=tuple(resolution), objects=objects,
                  materials=materials, sun=sun, environment=sky, camera=_camera(rng, frames), source=PREFIX,
                  tags=frozenset({"antialias", "training"}))
-
-
-def _translation(offset) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, 3] = offset
-    return m
 
 
 def _camera(rng: np.random.Generator, frames: int) -> CameraPath:

@@ -15,7 +15,7 @@ of the two rows visited just before it, and the ring holds 3 rows per tap at eve
 Vectorization. Each pixel loop runs over a row, branch-free, with all 12 taps in its body: a
 pixel's own values are loaded once for its 12 pair weights and once for its 24 taps, and the
 sums stay in registers. LLVM vectorizes the loops (contiguous unsigned indices, no libm call:
-:func:`.fastexp.exp2_minus`); the parallel loop body creates no array views, so Numba marks
+:func:`harness.kernels.exp2_minus`); the parallel loop body creates no array views, so Numba marks
 the arrays ``noalias`` and LLVM needs no run-time aliasing tests. The packed values are bounded
 (:mod:`.layout`), so the loops hold no overflow guard.
 """
@@ -27,7 +27,8 @@ import time
 import numpy as np
 from numba import get_num_threads, njit, prange, uint64
 
-from .fastexp import LOG2E, exp2_minus
+from harness import kernels
+
 from .layout import A_N_MIN, ACTIVE, MAX_RUNS, Buffers, prepare, unpack_row
 
 #: the forward half of the 5x5 taps as (dx, dy) in hole-spacing units: dy > 0, or dy = 0 and
@@ -58,8 +59,8 @@ def _weight(cp, gp, ps, iq, c0, c1, c2, n0, n1, n2, x0, x1, x2, b_c, b_n, b_x, e
     f0 = gp[o3 + iq] - x0
     f1 = gp[o4 + iq] - x1
     f2 = gp[o5 + iq] - x2
-    return exp2_minus(e_k + b_c * (d0 * d0 + d1 * d1 + d2 * d2) + b_n * (e0 * e0 + e1 * e1 + e2 * e2)
-                      + b_x * (f0 * f0 + f1 * f1 + f2 * f2))
+    return kernels.exp2_minus(e_k + b_c * (d0 * d0 + d1 * d1 + d2 * d2) + b_n * (e0 * e0 + e1 * e1 + e2 * e2)
+                              + b_x * (f0 * f0 + f1 * f1 + f2 * f2))
 
 
 @njit(cache=True, fastmath=True, inline="always")
@@ -370,7 +371,7 @@ def iterate(buffers: Buffers, coefficients, taps, color, scale: float):
     for i in range(last + 1):
         a_c, a_n, a_x = (np.float64(v) for v in coefficients[i])
         a_n = max(a_n, A_N_MIN)  # keeps the background marker effective
-        b_c, b_n, b_x = (np.float32(v * LOG2E) for v in (a_c, a_n, a_x))
+        b_c, b_n, b_x = (np.float32(v * kernels.LOG2E) for v in (a_c, a_n, a_x))
         order, starts = balanced_parts(b, parts, 2**i)
         atrous_pass(src, dst, b.guide, b.state, b.runs, b.run_count, b.row_surface, b.halo, b.stride, 2**i, b_c,
                     b_n, b_x, taps[12], exponents, order, starts, ring, i == last, color.reshape(-1),

@@ -6,20 +6,13 @@ Illumination Filtering", HPG 2010.
 
 from __future__ import annotations
 
-import copy
-
-from numba import get_num_threads, set_num_threads
-
-from harness import load_backend
+from harness import kernels, load_backend
 
 from .layout import Buffers
 from .params import EAWParams, b3_kernel
 
 #: the backends, each a module of this package with ``run(frame, params, coefficients, taps, buffers)``
 BACKENDS = ("cpu", "cuda")
-#: below this many pixels the CPU backend runs on one thread: waking the thread pool costs more
-#: than it saves (milliseconds per parallel region on a loaded 2-core machine, see README)
-SERIAL_MAX_PIXELS = 256 * 256
 
 
 class EAWFilter:
@@ -51,27 +44,12 @@ class EAWFilter:
     def reset(self) -> None:
         """Nothing to forget: the filter keeps no history (buffers are only scratch space)."""
 
-    def __deepcopy__(self, memo):
-        """A deep copy that shares the backend module (modules cannot be copied)."""
-        new = copy.copy(self)
-        memo[id(self)] = new
-        for name, value in self.__dict__.items():
-            if name != "_kernels":
-                setattr(new, name, copy.deepcopy(value, memo))
-        return new
-
     def __call__(self, frame, sampler=None):
-        threads = get_num_threads()
-        serial = self.backend == "cpu" and frame.height * frame.width < SERIAL_MAX_PIXELS and threads > 1
-        if serial:
-            set_num_threads(1)
-        try:
+        # below kernels.SERIAL_MAX_PIXELS the CPU backend runs on one thread (see the README)
+        with kernels.serial_below(frame.height * frame.width, enabled=self.backend == "cpu"):
             h, w, halo = frame.height, frame.width, self.params.halo()
             if self._buffers is None or not self._buffers.fits(h, w, halo):
                 self._buffers = Buffers(h, w, halo)
             out, self.stage_ms = self._kernels.run(frame, self.params, self._coefficients, self._taps,
                                                    self._buffers)
             return out
-        finally:
-            if serial:
-                set_num_threads(threads)

@@ -28,8 +28,7 @@ import numpy as np
 from numba import njit, prange, types, uint64
 from numba.extending import intrinsic
 
-from .fastexp import float32_bits_as_int32
-from .fastlog import fast_log
+from harness import kernels
 
 #: largest magnitude of a normalised colour value in the planes: 3 (2 COLOR_MAX)^2 COEF_MAX and
 #: sums of 24 weighted differences stay finite in float32
@@ -72,7 +71,7 @@ def finite(x):
     carrying the ``nnan`` / ``ninf`` flags (``fastmath=True``), LLVM folds the test to true, so
     the functions that test computed values compile without those flags
     (:data:`SURVEY_FASTMATH`)."""
-    return (float32_bits_as_int32(x) & np.int32(0x7F800000)) != np.int32(0x7F800000)
+    return (kernels.float32_bits_as_int32(x) & np.int32(0x7F800000)) != np.int32(0x7F800000)
 
 
 def _select_intrinsic(predicate):
@@ -188,7 +187,7 @@ def survey(color, normal, position, ids, depth, variance, has_ids, has_depth, ha
             lum = (np.float32(LUMA[0]) * cf[j] + np.float32(LUMA[1]) * cf[j + uint64(1)]
                    + np.float32(LUMA[2]) * cf[j + uint64(2)])
             ok = surface & (lum >= tiny) & finite(lum)
-            total += fast_log(lum if ok else np.float32(1.0))
+            total += kernels.fast_log(lum if ok else np.float32(1.0))
             count += np.int64(ok)
             lo0 = fast_min(lo0, p0 if surface else big)
             lo1 = fast_min(lo1, p1 if surface else big)

@@ -37,11 +37,6 @@ class FXAA:
     def reset(self) -> None:
         """Nothing to forget."""
 
-    def __deepcopy__(self, memo):
-        clone = FXAA.__new__(FXAA)
-        clone.params, clone._ops = dict(self.params), self._ops
-        return clone
-
     def __call__(self, frame, sampler=None) -> np.ndarray:
         p = self.params
         return self._ops.fxaa(frame["color"], p["edge_threshold"], p["edge_threshold_min"], p["span_max"])

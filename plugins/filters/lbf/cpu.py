@@ -14,7 +14,7 @@ Stages of :class:`Denoiser`:
     (:func:`.kernels.mlp_px`); only the 6 bandwidths are stored.
 ``bilateral``
     The cross-bilateral filter over rows: float32 distances and weights
-    (:func:`.fastexp.exp_neg`), loops along the row that vectorise, column-padded planes so
+    (:func:`harness.kernels.exp_neg`), loops along the row that vectorise, column-padded planes so
     that every tap is an in-bounds load, float32 partial sums per window row added in float64.
 
 Rows (or tiles of a row) are dealt cyclically to ``numba.get_num_threads()`` workers, so the
@@ -31,8 +31,9 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from harness import kernels
+
 from . import kernels as K
-from .fastexp import exp_neg
 from .features import FEATURE_VAR_FLOOR, Inputs, position_stats
 
 BLOCK = 256
@@ -271,7 +272,7 @@ def _filter_tile(sp, cp, vp, inside, params, radius, inv_tau, scale, pad, i, j0,
                 d += p_c[j] * (e0 * e0 / max(u0[j] + w0[j] + eps, eps)
                                + e1 * e1 / max(u1[j] + w1[j] + eps, eps)
                                + e2 * e2 / max(u2[j] + w2[j] + eps, eps))
-                wt[j] = exp_neg(d) * m[j] if d <= cut else f32(0.0)
+                wt[j] = kernels.exp_neg(d) * m[j] if d <= cut else f32(0.0)
             for j in range(n):
                 e = wt[j] * scale
                 s0[j] += e * q0[j]

@@ -31,7 +31,7 @@ import importlib.util
 
 import numpy as np
 
-from harness import FilterSpec, Param, compute_threads, hookimpl
+from harness import FilterSpec, Param, compute_threads, hookimpl, kernels
 
 # pyoidn imports torch (seconds): look it up now, so a missing install marks this plugin broken,
 # and import it when a filter is built.
@@ -85,18 +85,16 @@ class OIDN:
             raise ValueError(f"oidn: quality must be one of {list(_QUALITY)}, got {quality!r}")
         import pyoidn
 
-        self._oidn = pyoidn
+        self._oidn = kernels.BackendHandle(pyoidn)
         self.quality = quality
-        self._device = pyoidn.Device()
-        self._device.set_int("numThreads", compute_threads())  # what `denoise-bench bench --threads` asks
-        self._device.commit()
+        device = pyoidn.Device()
+        device.set_int("numThreads", compute_threads())  # what `denoise-bench bench --threads` asks
+        device.commit()
+        self._device = kernels.BackendHandle(device)  # copies of the filter share the device
         self.repaired = 0
 
     def reset(self):
         """Stateless."""
-
-    def __deepcopy__(self, memo):
-        return OIDN(quality=self.quality)
 
     def __call__(self, frame, sampler=None):
         color, bad_color = _sanitised(frame["color"], 0.0, _F32_MAX)
@@ -110,7 +108,7 @@ class OIDN:
             np.minimum(color, _F32_MAX, out=color)
         pyoidn = self._oidn
         out = np.zeros_like(color)
-        filt = pyoidn.Filter(self._device, "RT")
+        filt = pyoidn.Filter(self._device.target, "RT")
         filt.set_image(pyoidn.OIDN_IMAGE_COLOR, color, pyoidn.OIDN_FORMAT_FLOAT3)
         filt.set_image(pyoidn.OIDN_IMAGE_ALBEDO, albedo, pyoidn.OIDN_FORMAT_FLOAT3)
         filt.set_image(pyoidn.OIDN_IMAGE_NORMAL, normal, pyoidn.OIDN_FORMAT_FLOAT3)

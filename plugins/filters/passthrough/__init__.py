@@ -1,4 +1,14 @@
-"""The ``passthrough`` filter: returns the noisy colour (the no-filter baseline)."""
+"""The unfiltered input under two names: ``passthrough`` (the no-filter baseline of the denoise
+task: the noisy colour) and ``noaa`` (the baseline row of the antialias task).
+
+For ``noaa`` each output is a copy of the frame's ``color``: one shading sample per pixel at the
+frame's sub-pixel jitter, as the renderer made it. Scoring it against the supersampled reference
+measures how much aliasing a scene has before any filter runs.
+"""
+
+from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -6,11 +16,18 @@ from harness import FilterSpec, hookimpl
 
 
 class Passthrough:
-    """Returns a copy of ``frame["color"]``."""
+    """Returns a copy of ``frame["color"]`` (float32).
 
-    def __init__(self, backend: str = "cpu"):
+    Parameters
+    ----------
+    backend : {"cpu"}
+    name : str
+        The filter's name, for messages.
+    """
+
+    def __init__(self, backend: str = "cpu", *, name: str = "passthrough"):
         if backend != "cpu":
-            raise ValueError(f"passthrough: unsupported backend {backend!r}")
+            raise ValueError(f"{name}: unsupported backend {backend!r}; choose from ('cpu',)")
 
     def reset(self) -> None:
         """Nothing to forget."""
@@ -22,5 +39,15 @@ class Passthrough:
 @hookimpl
 def register_filters():
     return [
-        FilterSpec(name="passthrough", version="1.0", factory=Passthrough, description="the noisy input, unfiltered")
+        FilterSpec(name="passthrough", version="1.0", factory=Passthrough, description="the noisy input, unfiltered"),
+        FilterSpec(
+            name="noaa",
+            version="1.0",
+            factory=functools.partial(Passthrough, name="noaa"),
+            requires={"color"},
+            temporal=False,
+            backends=("cpu",),
+            tasks={"antialias"},
+            description="no anti-aliasing: the aliased one-sample-per-pixel input (baseline)",
+        ),
     ]

@@ -16,7 +16,7 @@ Parallel loops. Inside a chunk, tiles of one row by ``BLOCK`` pixels are dealt c
 and neighbouring tiles (similar cost: both sky or both geometry) go to different workers; a
 static split into halves would give one worker all the sky.
 
-Arithmetic. Feature weights ``exp(-|f_i - f_j|^2)`` are float32 (:func:`.fastexp.exp_neg`,
+Arithmetic. Feature weights ``exp(-|f_i - f_j|^2)`` are float32 (:func:`harness.kernels.exp_neg`,
 a few ulps); each candidate's four sums (weight, weighted RGB) add groups of ``GROUP``
 neighbouring taps in float32 and accumulate the groups in float64; SURE and its smoothing are
 float64. Tiles without a noisy pixel are skipped.
@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .fastexp import exp_neg
+from harness import kernels
 
 BLOCK = 256
 #: taps of a row summed together in one inner loop (fewer stores to the accumulators)
@@ -73,7 +73,7 @@ def _weights(fpad, mask, i, ii, a, b, n, wt):
         e5 = fa5[j] - fb5[j]
         e6 = fa6[j] - fb6[j]
         d = e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3 + e4 * e4 + e5 * e5 + e6 * e6
-        wt[j] = exp_neg(d) * m[j]
+        wt[j] = kernels.exp_neg(d) * m[j]
 
 
 @njit(cache=True, fastmath=True)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import time
 
 import numpy as np
@@ -59,15 +58,6 @@ class SBFFilter:
 
     def reset(self) -> None:
         """SBF keeps no history."""
-
-    def __deepcopy__(self, memo):
-        """A deep copy that shares the backend module (modules cannot be copied)."""
-        new = copy.copy(self)
-        memo[id(self)] = new
-        for name, value in self.__dict__.items():
-            if name != "kernels":
-                setattr(new, name, copy.deepcopy(value, memo))
-        return new
 
     def __call__(self, frame, sampler=None) -> np.ndarray:
         if self.params.mode == "adaptive" and sampler is not None:

@@ -21,10 +21,10 @@ laid out for LLVM's loop vectorizer:
   branch-free loop computes the depth/normal part of the two weights that the signals share,
   then one loop per signal the luminance weights and the five sums (weight, colour,
   squared-weight variance). The threads take tasks of a few consecutive rows from a shared
-  counter (:mod:`.schedule`): sky at the top of the image leaves no thread idle, and the
-  threads walk down the image together, so the rows their taps read are shared in the caches
-  (before, each thread filtered interleaved rows 16 threads apart, which re-read every tap row
-  from memory).
+  counter (:func:`harness.kernels.take_range`): sky at the top of the image leaves no thread
+  idle, and the threads walk down the image together, so the rows their taps read are shared in
+  the caches (before, each thread filtered interleaved rows 16 threads apart, which re-read
+  every tap row from memory).
 * **Bounded values.** Colour is at most 1e37 in magnitude (:mod:`.modulation`), variances are
   clamped at ``VAR_MAX``, luminances at ``LUM_MAX`` and the luminance weight's inverse scale at
   ``INV_MAX`` (:mod:`.weights`; the per-pixel definition applies the same bounds), so every
@@ -39,7 +39,9 @@ import math
 import numpy as np
 from numba import njit, prange, uint64
 
-from .schedule import TASK_ROWS, take
+from harness import kernels
+
+from .params import TASK_ROWS
 from .weights import INV_MAX, LUM_MAX, VAR_MAX, b3_tap, expneg, gauss3_tap, neg_log_series
 
 #: pixels of a row filtered together (the accumulators of a chunk stay in L1)
@@ -349,7 +351,7 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
         surface); the variances stay in the pool.
     nthreads : int
         Parallel workers; each takes tasks of ``TASK_ROWS`` consecutive rows from a shared
-        counter (:mod:`.schedule`).
+        counter (:func:`harness.kernels.take_range`).
     """
     sn = np.float32(sigma_n)
     sl = np.float32(sigma_l)
@@ -358,15 +360,14 @@ def atrous_level(pool, ps, nsig, h, w, halo, stride, step, src, dst, sigma_n, si
     o0 = uint64(src) * psu
     o1 = uint64(src + SIGNAL_PLANES) * psu
     hc = np.float32(b3_tap(0) * b3_tap(0))
-    tasks = -(-h // TASK_ROWS)
     counter = np.zeros(1, np.int64)
-    for _ in prange(max(min(nthreads, tasks), 1)):
+    for _ in prange(kernels.thread_count(nthreads, h, TASK_ROWS)):
         acc = np.empty(_REGIONS * CHUNK, np.float32)
         while True:
-            task = take(counter)
-            if task >= tasks:
+            start, stop = kernels.take_range(counter, h, TASK_ROWS)
+            if start >= stop:
                 break
-            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+            for i in range(start, stop):
                 row = (i + halo) * stride + halo
                 # the chunks run from the first to the last surface pixel of the row
                 jlo = w

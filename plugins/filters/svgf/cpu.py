@@ -4,8 +4,8 @@ Preparation and remodulation run the row-vectorized forms of the per-pixel stage
 (:mod:`.prepare_rows`), reprojection calls its per-pixel function (inlined); the
 variance uses the row-vectorized kernel of :mod:`.variance_rows`, the à-trous iterations the
 padded planes of :mod:`.atrous_planes`. Every stage runs one ``prange`` iteration per thread,
-the threads taking tasks of consecutive rows from a shared counter (:mod:`.schedule`). NumPy's
-error model: no zero-division branches (every
+the threads taking tasks of consecutive rows from a shared counter
+(:func:`harness.kernels.take_range`). NumPy's error model: no zero-division branches (every
 division in the stages is guarded or has a positive denominator).
 """
 
@@ -14,10 +14,12 @@ from __future__ import annotations
 import numpy as np
 from numba import get_num_threads, njit, prange
 
+from harness import kernels
+
 from .atrous_planes import PlanePool, atrous_level, pack_planes
+from .params import TASK_ROWS
 from .prepare_rows import prepare_row, remodulate_row
 from .reproject import gradient_pixel, reproject_pixel
-from .schedule import TASK_ROWS, take
 from .variance_rows import variance_rows
 
 
@@ -25,23 +27,22 @@ from .variance_rows import variance_rows
 def _prepare(color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in, obj_in,
              motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion, grad, nthreads):
     h, w = depth_in.shape
-    tasks = -(-h // TASK_ROWS)
     counter = np.zeros(1, np.int64)
-    for _ in prange(max(min(nthreads, tasks), 1)):
+    for _ in prange(kernels.thread_count(nthreads, h, TASK_ROWS)):
         while True:
-            task = take(counter)
-            if task >= tasks:
+            start, stop = kernels.take_range(counter, h, TASK_ROWS)
+            if start >= stop:
                 break
-            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+            for i in range(start, stop):
                 prepare_row(i, color, indirect, nsig, emission, has_emission, albedo_in, normal_in, depth_in,
                             obj_in, motion_in, albedo_eps, sig, albedo, valid, depth, normal, obj, motion)
     gradient_tasks = np.zeros(1, np.int64)
-    for _ in prange(max(min(nthreads, tasks), 1)):
+    for _ in prange(kernels.thread_count(nthreads, h, TASK_ROWS)):
         while True:
-            task = take(gradient_tasks)
-            if task >= tasks:
+            start, stop = kernels.take_range(gradient_tasks, h, TASK_ROWS)
+            if start >= stop:
                 break
-            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+            for i in range(start, stop):
                 for j in range(w):
                     gradient_pixel(i, j, depth, valid, grad)
 
@@ -51,14 +52,13 @@ def _reproject(sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom,
                prev_valid, prev_depth, prev_normal, prev_obj, has_prev, depth_tol, normal_tol,
                alpha_color, alpha_moments, history_average, max_history, acc_sig, acc_mom, hist, nthreads):
     h, w = valid.shape
-    tasks = -(-h // TASK_ROWS)
     counter = np.zeros(1, np.int64)
-    for _ in prange(max(min(nthreads, tasks), 1)):
+    for _ in prange(kernels.thread_count(nthreads, h, TASK_ROWS)):
         while True:
-            task = take(counter)
-            if task >= tasks:
+            start, stop = kernels.take_range(counter, h, TASK_ROWS)
+            if start >= stop:
                 break
-            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+            for i in range(start, stop):
                 for j in range(w):
                     reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom,
                                     prev_hist, prev_valid, prev_depth, prev_normal, prev_obj, has_prev,
@@ -69,14 +69,13 @@ def _reproject(sig, valid, depth, normal, obj, grad, motion, prev_sig, prev_mom,
 @njit(parallel=True, cache=True, error_model="numpy")
 def _remodulate(sig, albedo, valid, color, emission, has_emission, out, nthreads):
     h, w = valid.shape
-    tasks = -(-h // TASK_ROWS)
     counter = np.zeros(1, np.int64)
-    for _ in prange(max(min(nthreads, tasks), 1)):
+    for _ in prange(kernels.thread_count(nthreads, h, TASK_ROWS)):
         while True:
-            task = take(counter)
-            if task >= tasks:
+            start, stop = kernels.take_range(counter, h, TASK_ROWS)
+            if start >= stop:
                 break
-            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+            for i in range(start, stop):
                 remodulate_row(i, sig, albedo, valid, color, emission, has_emission, out)
 
 

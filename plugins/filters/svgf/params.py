@@ -11,6 +11,10 @@ from dataclasses import dataclass, fields
 
 from harness import Param
 
+#: rows per task of the ``cpu`` backend's balanced loops (:func:`harness.kernels.take_range`;
+#: 720 rows: 180 tasks)
+TASK_ROWS = 4
+
 #: The paper's values. Reprojection tolerances and epsilons are not given in the paper; the
 #: values here are this implementation's choices (see README.md).
 PAPER = {

@@ -5,18 +5,14 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from numba import get_num_threads, set_num_threads
 
-from harness import load_backend
+from harness import kernels, load_backend
 
 from .params import SVGFParams
 
 #: the backends, each a module of this package with an ``Ops`` class (array allocation, copies
 #: and the stage launches: ``prepare``, ``reproject``, ``variance``, ``atrous``, ``remodulate``)
 BACKENDS = ("cpu", "cuda")
-#: below this many pixels the CPU backend runs on one thread: each of a frame's ten parallel
-#: regions otherwise waits for the pool's threads (milliseconds each on a loaded machine)
-SERIAL_MAX_PIXELS = 256 * 256
 
 
 def _frame_set(ops, nsig: int, h: int, w: int) -> dict:
@@ -105,15 +101,10 @@ class SVGF:
 
     def __call__(self, frame, sampler=None) -> np.ndarray:
         """Filter one frame of a sequence; returns (H, W, 3) float32."""
-        threads = get_num_threads()
-        serial = self.backend == "cpu" and frame.height * frame.width < SERIAL_MAX_PIXELS and threads > 1
-        if serial:
-            set_num_threads(1)
-        try:
+        # below kernels.SERIAL_MAX_PIXELS the CPU backend runs on one thread: each of a frame's ten
+        # parallel regions otherwise waits for the pool's threads (see the README)
+        with kernels.serial_below(frame.height * frame.width, enabled=self.backend == "cpu"):
             return self._filter(frame)
-        finally:
-            if serial:
-                set_num_threads(threads)
 
     def _filter(self, frame) -> np.ndarray:
         p = self.params

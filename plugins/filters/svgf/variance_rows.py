@@ -14,7 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange, uint64
 
-from .schedule import TASK_ROWS, take
+from harness import kernels
+
+from .params import TASK_ROWS
 from .variance import SPATIAL_RADIUS
 from .weights import expneg, neg_log_series
 
@@ -157,7 +159,7 @@ def _next_run(valid, hist, variance_frames, i, start):
 def variance_rows(mom, hist, valid, depth, normal, grad, variance_frames, sigma_z, sigma_n, depth_eps, var,
                   nthreads):
     """Luminance variance of every signal (arguments as ``variance_pixel``, no i, j; ``nthreads``
-    parallel workers taking tasks of rows from a shared counter, :mod:`.schedule`).
+    parallel workers taking tasks of rows from a shared counter, :func:`harness.kernels.take_range`).
 
     The parallel body holds no bool variable and no array view (Numba's alias analysis would
     take either for an alias and drop the ``noalias`` that lets LLVM vectorize the tap loops).
@@ -166,16 +168,15 @@ def variance_rows(mom, hist, valid, depth, normal, grad, variance_frames, sigma_
     h = valid.shape[0]
     w = valid.shape[1]
     sn = np.float32(sigma_n)
-    tasks = -(-h // TASK_ROWS)
     counter = np.zeros(1, np.int64)
-    for _ in prange(max(min(nthreads, tasks), 1)):
+    for _ in prange(kernels.thread_count(nthreads, h, TASK_ROWS)):
         sums = np.empty(5 * CHUNK, np.float64)
         cen = np.empty(_CEN_REGIONS * CHUNK, np.float32)
         while True:
-            task = take(counter)
-            if task >= tasks:
+            start, stop = kernels.take_range(counter, h, TASK_ROWS)
+            if start >= stop:
                 break
-            for i in range(task * TASK_ROWS, min(task * TASK_ROWS + TASK_ROWS, h)):
+            for i in range(start, stop):
                 if _temporal_row(mom, hist, valid, variance_frames, i, var) == 0:
                     continue
                 # sweep each run [a, b) of consecutive short-history pixels only (a camera pan

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from harness import load_backend
@@ -38,13 +36,6 @@ class TAA:
     def reset(self) -> None:
         """Forget the history (new sequence or camera cut)."""
         self._history = None
-
-    def __deepcopy__(self, memo):
-        """A copy with its own history (the backend module is shared, not copied)."""
-        clone = copy.copy(self)
-        clone.settings = dict(self.settings)
-        clone._history = copy.deepcopy(self._history, memo)
-        return clone
 
     def __call__(self, frame, sampler=None) -> np.ndarray:
         """Anti-alias one frame of a sequence; returns (H, W, 3) float32."""

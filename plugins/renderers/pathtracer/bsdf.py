@@ -139,29 +139,6 @@ def _legacy_eval(kind, alb, alpha, spec, wo, wi):
     )
 
 
-@njit(cache=True, error_model="numpy", inline="always")
-def _sample_vndf(wo, a, u1, u2):
-    vh = normalize((a * wo[0], a * wo[1], wo[2]))
-    lensq = vh[0] * vh[0] + vh[1] * vh[1]
-    if lensq > 0.0:
-        inv = 1.0 / math.sqrt(lensq)
-        t1 = (-vh[1] * inv, vh[0] * inv, 0.0)
-    else:
-        t1 = (1.0, 0.0, 0.0)
-    t2 = (vh[1] * t1[2] - vh[2] * t1[1], vh[2] * t1[0] - vh[0] * t1[2], vh[0] * t1[1] - vh[1] * t1[0])
-    r = math.sqrt(u1)
-    phi = 2.0 * math.pi * u2
-    p1 = r * math.cos(phi)
-    p2 = r * math.sin(phi)
-    s = 0.5 * (1.0 + vh[2])
-    p2 = (1.0 - s) * math.sqrt(max(1.0 - p1 * p1, 0.0)) + s * p2
-    p3 = math.sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0))
-    nh = (p1 * t1[0] + p2 * t2[0] + p3 * vh[0],
-          p1 * t1[1] + p2 * t2[1] + p3 * vh[1],
-          p1 * t1[2] + p2 * t2[2] + p3 * vh[2])
-    return normalize((a * nh[0], a * nh[1], max(nh[2], 0.0)))
-
-
 @njit(cache=True, error_model="numpy")
 def _legacy_sample(kind, alb, alpha, spec, ior, wo, u1, u2, u3):
     """Sample an incident direction (harness kinds).
@@ -209,7 +186,7 @@ def _legacy_sample(kind, alb, alpha, spec, ior, wo, u1, u2, u3):
         f0 = (spec[0] + spec[1] + spec[2]) / 3.0
         use_spec = u3 < _plastic_spec_prob(wo[2], f0, luminance(alb[0], alb[1], alb[2]))
     if use_spec:
-        h = _sample_vndf(wo, a, u1, u2)
+        h = mf_sample(wo, a, a, 0, u1, u2)  # GGX (isotropic): its visible normals
         c = wo[0] * h[0] + wo[1] * h[1] + wo[2] * h[2]
         wi = (2.0 * c * h[0] - wo[0], 2.0 * c * h[1] - wo[1], 2.0 * c * h[2] - wo[2])
     else:

@@ -25,6 +25,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from harness import kernels
+
 from .borrow import borrowed
 from .bsdf import (
     F_A,
@@ -42,14 +44,13 @@ from .bsdf import (
 from .lights import DELTA_LIGHT, infinite_radiance, infinite_radiance_pdf, sample_light
 from .materials import HAS_MASK, ONE_SIDED_EMISSION
 from .rng import stream_key, uniform
-from .schedule import take
 from .shading import bump_normal, bump_shadowing, node_colour, resolve, transparent
 from .traverse import closest_hit, occluded, stack_size
 from .vecmath import cross, dot, normalize, onb, to_local, to_world
 
 MIS, LIGHT_ONLY, BSDF_ONLY = 0, 1, 2
 STRATEGIES = {"mis": MIS, "light": LIGHT_ONLY, "bsdf": BSDF_ONLY}
-TASK = 64  # pixels per task of the parallel loops, taken in turn by the threads (see .schedule)
+TASK = 64  # pixels per task of the parallel loops, taken in turn by the threads (see harness.kernels.take)
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -313,7 +314,7 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, dep
     width, height : int
     geom, mats, depth : scene arrays (see :class:`.scenedata.SceneData`).
     threads : int
-        Workers taking tasks in turn (``numba.get_num_threads()``; see :mod:`.schedule`).
+        Workers taking tasks in turn (``numba.get_num_threads()``; see :func:`harness.kernels.take`).
 
     Returns
     -------
@@ -337,7 +338,7 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, dep
         stack_n = np.empty(stack_size(depth), np.int32)
         stack_t = np.empty(stack_size(depth), np.float32)
         while True:
-            task = take(counter)
+            task = kernels.take(counter)
             if task >= tasks:
                 break
             for i in range(task * TASK, min(task * TASK + TASK, n)):
@@ -389,7 +390,7 @@ def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, de
     want_moments, want_split : bool
         Whether to update ``acc_sq`` and ``acc_direct``.
     threads : int
-        Workers taking tasks in turn (``numba.get_num_threads()``; see :mod:`.schedule`).
+        Workers taking tasks in turn (``numba.get_num_threads()``; see :func:`harness.kernels.take`).
     """
     n = origins.shape[0]
     emissive = any_emission(mats[2])
@@ -399,7 +400,7 @@ def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, de
         stack_n = np.empty(stack_size(depth), np.int32)
         stack_t = np.empty(stack_size(depth), np.float32)
         while True:
-            task = take(counter)
+            task = kernels.take(counter)
             if task >= tasks:
                 break
             for i in range(task * TASK, min(task * TASK + TASK, n)):

@@ -60,27 +60,6 @@ def polydata(shapes: Shape | list[Shape]):
     return mesh
 
 
-# ----------------------------------------------------------------------------- transforms
-
-
-def translation(offset) -> np.ndarray:
-    """4x4 translation by ``offset``."""
-    m = np.eye(4)
-    m[:3, 3] = offset
-    return m
-
-
-def rotation(axis, degrees: float) -> np.ndarray:
-    """4x4 rotation by ``degrees`` about the unit ``axis`` through the origin (Rodrigues' formula)."""
-    a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
-    t = np.radians(degrees)
-    k = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-    m = np.eye(4)
-    m[:3, :3] = np.eye(3) + np.sin(t) * k + (1.0 - np.cos(t)) * (k @ k)
-    return m
-
-
 # ----------------------------------------------------------------------------- shapes
 
 

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import Material, SceneObject
+from harness import Material, SceneObject, rotation, translation
 
 from . import textures
 from .daylight import camera_path, sky, suite_scene, sun
-from .geometry import box, join, polydata, quad, rotation, sphere, torus, translation, tube
+from .geometry import box, join, polydata, quad, sphere, torus, tube
 
 FRAMES = 24
 SPEC = {

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import CameraPath, Material, Scene, SceneObject
+from harness import CameraPath, Material, Scene, SceneObject, rotation, translation
 
 from . import textures
 from .assemble import suite_scene
 from .lighting import sky, sun
 from .motion import along, rolling, swinging
-from .primitives import arch_panel, box, cloth, cylinder, merge, plant, rotate, sphere, to_polydata, translate
+from .primitives import arch_panel, box, cloth, cylinder, merge, plant, sphere, to_polydata
 
 LENGTH = 16.0  # court length along x (m)
 COURT = 4.0  # half-width of the court (colonnade line at z = +-COURT)
@@ -58,13 +58,13 @@ def _side(sign: float):
     stone, marble = [], []
     # columns of both storeys
     for x in np.arange(BAY, LENGTH, BAY):
-        marble.append(cylinder(0.22, 3.0, MARBLE, segments=16).transformed(translate((x, 0.0, sign * COURT))))
-        marble.append(cylinder(0.18, 2.5, MARBLE, segments=16).transformed(translate((x, 4.5, sign * COURT))))
+        marble.append(cylinder(0.22, 3.0, MARBLE, segments=16).transformed(translation((x, 0.0, sign * COURT))))
+        marble.append(cylinder(0.18, 2.5, MARBLE, segments=16).transformed(translation((x, 4.5, sign * COURT))))
     # arcades: one arch panel per bay and storey (panel built in x-y, extruded along z)
     for xc in np.arange(BAY / 2, LENGTH, BAY):
         for spring, top in ((3.0, 4.2), (7.0, 8.2)):
             panel = arch_panel(BAY, spring, top, 0.5, STONE, segments=12)
-            stone.append(panel.transformed(translate((xc, 0.0, sign * COURT - 0.25))))
+            stone.append(panel.transformed(translation((xc, 0.0, sign * COURT - 0.25))))
     # gallery floor and aisle roof, outer wall, balustrade of the gallery
     z_in, z_out = sign * (COURT - 0.25), sign * (COURT + AISLE)
     lo, hi = min(z_in, z_out), max(z_in, z_out)
@@ -75,7 +75,7 @@ def _side(sign: float):
     rail_z = sign * (COURT - 0.05)
     stone.append(box((0.0, 5.35, rail_z - 0.08), (LENGTH, 5.45, rail_z + 0.08), STONE, uv_density=0.5))
     for x in np.arange(0.25, LENGTH, 0.5):
-        marble.append(cylinder(0.04, 0.85, MARBLE, segments=6, caps=False).transformed(translate((x, 4.5, rail_z))))
+        marble.append(cylinder(0.04, 0.85, MARBLE, segments=6, caps=False).transformed(translation((x, 4.5, rail_z))))
     return stone, marble
 
 
@@ -84,9 +84,9 @@ def _banners() -> list:
     for k, (x, sign) in enumerate(((5.0, -1), (11.0, -1), (5.0, 1), (11.0, 1))):
         material = BANNER_RED if k % 2 == 0 else BANNER_BLUE
         sheet = cloth(1.1, 3.2, material, folds=3, amplitude=0.07, nu=14, nv=28, sway=0.15, seed=k)
-        m = translate((x, 8.1, sign * (COURT - 0.45)))
+        m = translation((x, 8.1, sign * (COURT - 0.45)))
         if sign < 0:  # the sheet faces -z; turn the banners of the -z side towards the court
-            m = m @ rotate((0, 1, 0), 180)
+            m = m @ rotation((0, 1, 0), 180)
         parts.append(sheet.transformed(m))
     return parts
 
@@ -95,11 +95,11 @@ def _plants(rng: np.random.Generator) -> tuple[list, list, list]:
     pots, soil, leaves = [], [], []
     for x in (3.0, 8.0, 13.0):
         for sign in (-1, 1):
-            at = translate((x, 0.0, sign * (COURT - 1.0)))
+            at = translation((x, 0.0, sign * (COURT - 1.0)))
             pots.append(cylinder(0.32, 0.6, POT, segments=14, radius_top=0.42).transformed(at))
-            soil.append(cylinder(0.4, 0.01, SOIL, segments=14, caps=True).transformed(at @ translate((0, 0.55, 0))))
+            soil.append(cylinder(0.4, 0.01, SOIL, segments=14, caps=True).transformed(at @ translation((0, 0.55, 0))))
             leaves.append(plant(rng, LEAVES, n_leaves=60, height=0.9, leaf_length=0.55, leaf_width=0.07)
-                          .transformed(at @ translate((0, 0.55, 0))))
+                          .transformed(at @ translation((0, 0.55, 0))))
     return pots, soil, leaves
 
 SPEC = {

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import CameraPath, Material, Scene, SceneObject
+from harness import CameraPath, Material, Scene, SceneObject, rotation, translation
 
 from .assemble import suite_scene
-from .primitives import box, grid, merge, rotate, to_polydata, translate
+from .primitives import box, grid, merge, to_polydata
 
 W = 5.56  # box width, depth and height (m)
 
@@ -20,7 +20,7 @@ W = 5.56  # box width, depth and height (m)
 def _block(size, angle, position, material):
     half = np.array([size[0] / 2, 0.0, size[2] / 2])
     part = box(-half, half + np.array([0, size[1], 0]), material)
-    return part.transformed(translate(position) @ rotate((0, 1, 0), angle))
+    return part.transformed(translation(position) @ rotation((0, 1, 0), angle))
 
 FRAMES = 8
 
@@ -53,7 +53,7 @@ def build() -> Scene:
     objects.append(SceneObject("tall_block", to_polydata(_block((1.66, 3.3, 1.66), 17.0, (1.85, 0.0, 2.2), white))))
     short = to_polydata(_block((1.66, 1.65, 1.66), 0.0, (0.0, 0.0, 0.0), white))
     path = zip(np.linspace(3.7, 3.1, FRAMES), np.linspace(3.6, 3.1, FRAMES), np.linspace(-17.0, 8.0, FRAMES))
-    moves = np.stack([translate((x, 0.0, z)) @ rotate((0, 1, 0), a) for x, z, a in path])
+    moves = np.stack([translation((x, 0.0, z)) @ rotation((0, 1, 0), a) for x, z, a in path])
     objects.append(SceneObject("short_block", short, transforms=moves))
     s = 1.3
     lamp = grid((W / 2 - s / 2, W - 0.01, W / 2 - s / 2), (s, 0, 0), (0, 0, s), light)

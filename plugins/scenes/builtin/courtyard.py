@@ -15,24 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import CameraPath, Material, Scene, SceneObject
+from harness import CameraPath, Material, Scene, SceneObject, rotation, translation
 
 from . import textures
 from .assemble import suite_scene
 from .lighting import sky, sun
 from .motion import along, swinging
-from .primitives import (
-    arch_panel,
-    box,
-    canopy,
-    cylinder,
-    merge,
-    plant,
-    rotate,
-    sphere,
-    to_polydata,
-    translate,
-)
+from .primitives import arch_panel, box, canopy, cylinder, merge, plant, sphere, to_polydata
 
 FRAMES = 32
 TREE = (-4.8, 0.0, -3.8)  # foot of the trunk
@@ -76,7 +65,7 @@ def _walls() -> list:
     ]
     # an arcade in front of the back wall
     for x in np.arange(-HALF + 1.0, HALF, 2.0):
-        parts.append(arch_panel(2.0, 2.6, 3.8, 0.4, STONE, segments=10).transformed(translate((x, 0.0, -HALF + 1.5))))
+        parts.append(arch_panel(2.0, 2.6, 3.8, 0.4, STONE, segments=10).transformed(translation((x, 0.0, -HALF + 1.5))))
     for x in np.arange(-HALF + 2.0, HALF, 2.0):
         parts.append(box((x - 0.15, 0.0, -HALF + 1.5), (x + 0.15, 2.6, -HALF + 1.9), STONE))
     parts.append(box((-HALF, 3.8, -HALF), (HALF, 4.0, -HALF + 1.9), STONE))
@@ -86,8 +75,8 @@ def _walls() -> list:
 def _table_set(rng: np.random.Generator, at: np.ndarray) -> tuple[list, list, list, list]:
     """One round table with chairs and tableware at ``at`` -> (wood, cloth, ceramic, glass) parts."""
     wood, cloth, ceramic, glass = [], [], [], []
-    place = translate(at)
-    cloth.append(cylinder(0.55, 0.03, CLOTH, segments=20).transformed(place @ translate((0, 0.75, 0))))
+    place = translation(at)
+    cloth.append(cylinder(0.55, 0.03, CLOTH, segments=20).transformed(place @ translation((0, 0.75, 0))))
     wood.append(cylinder(0.04, 0.75, WOOD, segments=8, caps=False).transformed(place))
     wood.append(cylinder(0.25, 0.03, WOOD, segments=12).transformed(place))
     for k in range(int(rng.integers(2, 5))):
@@ -96,17 +85,17 @@ def _table_set(rng: np.random.Generator, at: np.ndarray) -> tuple[list, list, li
         for lx in (-0.18, 0.18):
             for lz in (-0.18, 0.18):
                 chair.append(box((lx - 0.015, 0.0, lz - 0.015), (lx + 0.015, 0.42, lz + 0.015), WOOD))
-        m = place @ rotate((0, 1, 0), angle) @ translate((0, 0, 0.8))
+        m = place @ rotation((0, 1, 0), angle) @ translation((0, 0, 0.8))
         wood.append(merge(chair).transformed(m))
-        plate = place @ rotate((0, 1, 0), angle) @ translate((0, 0.78, 0.35))
+        plate = place @ rotation((0, 1, 0), angle) @ translation((0, 0.78, 0.35))
         ceramic.append(cylinder(0.11, 0.015, CERAMIC, segments=14).transformed(plate))
         ceramic.append(cylinder(0.035, 0.09, CERAMIC, segments=10, radius_top=0.045)
-                       .transformed(plate @ translate((0.16, 0.0, 0.0))))
+                       .transformed(plate @ translation((0.16, 0.0, 0.0))))
     for _ in range(int(rng.integers(1, 3))):
-        spot = translate((rng.uniform(-0.15, 0.15), 0.78, rng.uniform(-0.15, 0.15)))
+        spot = translation((rng.uniform(-0.15, 0.15), 0.78, rng.uniform(-0.15, 0.15)))
         glass.append(cylinder(0.035, 0.22, GLASS_GREEN, segments=10).transformed(place @ spot))
         glass.append(cylinder(0.035, 0.1, GLASS_GREEN, segments=10, radius_top=0.012)
-                     .transformed(place @ spot @ translate((0, 0.22, 0))))
+                     .transformed(place @ spot @ translation((0, 0.22, 0))))
     return wood, cloth, ceramic, glass
 
 
@@ -116,8 +105,8 @@ def _trolley() -> list:
     for x in (-0.27, 0.27):
         for z in (-0.42, 0.42):
             parts.append(box((x - 0.02, 0.0, z - 0.02), (x + 0.02, 0.8, z + 0.02), WOOD))
-    parts.append(cylinder(0.035, 0.22, GLASS_GREEN, segments=10).transformed(translate((0.1, 0.84, -0.2))))
-    parts.append(cylinder(0.12, 0.02, CERAMIC, segments=14).transformed(translate((-0.1, 0.84, 0.15))))
+    parts.append(cylinder(0.035, 0.22, GLASS_GREEN, segments=10).transformed(translation((0.1, 0.84, -0.2))))
+    parts.append(cylinder(0.12, 0.02, CERAMIC, segments=14).transformed(translation((-0.1, 0.84, 0.15))))
     return parts
 
 
@@ -134,7 +123,7 @@ def build() -> Scene:
             ceramic += ce
             glass += g
     # a tree in the back left corner and a vine pergola over the right side
-    trunk = cylinder(0.22, TRUNK_HEIGHT, BARK, segments=10, radius_top=0.12).transformed(translate(TREE))
+    trunk = cylinder(0.22, TRUNK_HEIGHT, BARK, segments=10, radius_top=0.12).transformed(translation(TREE))
     crown = canopy(rng, (-4.8, 4.0, -3.8), (2.2, 1.4, 2.2), LEAVES, n_leaves=1400, leaf_size=0.28)
     pergola = []
     for x in (3.0, 6.5):
@@ -145,14 +134,14 @@ def build() -> Scene:
     vines = canopy(rng, (4.75, 3.15, -0.5), (2.0, 0.12, 4.0), LEAVES, n_leaves=700, leaf_size=0.22)
     # fountain with a chrome ball; potted plants along the left wall
     fountain = [cylinder(0.9, 0.45, STONE, segments=24), cylinder(0.15, 0.9, STONE, segments=10)]
-    ball = sphere(0.3, CHROME, rings=14, segments=28).transformed(translate((0.0, 1.2, 0.0)))
-    at_fountain = translate((-1.5, 0.0, 4.5))
+    ball = sphere(0.3, CHROME, rings=14, segments=28).transformed(translation((0.0, 1.2, 0.0)))
+    at_fountain = translation((-1.5, 0.0, 4.5))
     pots, greens = [], []
     for z in (-1.0, 1.5, 4.0):
-        at = translate((-HALF + 0.6, 0.0, z))
+        at = translation((-HALF + 0.6, 0.0, z))
         pots.append(cylinder(0.3, 0.55, POT, segments=12, radius_top=0.38).transformed(at))
         clump = plant(rng, LEAVES, n_leaves=45, height=0.8, leaf_length=0.5)
-        greens.append(clump.transformed(at @ translate((0, 0.5, 0))))
+        greens.append(clump.transformed(at @ translation((0, 0.5, 0))))
     objects = [
         SceneObject("floor", to_polydata(floor)),
         SceneObject("walls", to_polydata(_walls())),
@@ -168,7 +157,7 @@ def build() -> Scene:
         SceneObject("chrome_ball", to_polydata(ball.transformed(at_fountain))),
         SceneObject("plants", to_polydata(pots + greens)),
         SceneObject("trolley", to_polydata(_trolley()),
-                    transforms=np.stack([translate((-1.75, 0.0, z)) for z in np.linspace(-3.5, 2.6, FRAMES)])),
+                    transforms=np.stack([translation((-1.75, 0.0, z)) for z in np.linspace(-3.5, 2.6, FRAMES)])),
     ]
     eye = along([(3.5, 3.6, 9.8), (1.5, 2.9, 8.2), (-1.0, 2.3, 6.8)], FRAMES)
     target = along([(-0.5, 0.6, -1.0), (-2.0, 1.0, -2.0), (-4.0, 1.8, -3.0)], FRAMES)

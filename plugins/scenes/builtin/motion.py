@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .primitives import rotate, translate
+from harness import rotation, translation
 
 
 def ease(frames: int) -> np.ndarray:
@@ -45,7 +45,7 @@ def rolling(start, end, radius: float, frames: int, axis_up=(0.0, 1.0, 0.0)) -> 
     out = []
     for s in np.linspace(0.0, 1.0, frames):
         angle = np.degrees(s * np.linalg.norm(path) / radius)
-        out.append(translate(a + s * path) @ rotate(axis, angle))
+        out.append(translation(a + s * path) @ rotation(axis, angle))
     return np.stack(out)
 
 
@@ -60,5 +60,5 @@ def swinging(pivot, axis, amplitude: float, periods: float, frames: int, rest=No
     out = []
     for t in np.linspace(0.0, 1.0, frames):
         angle = amplitude * np.sin(2.0 * np.pi * periods * t)
-        out.append(translate(p) @ rotate(axis, angle) @ translate(-p) @ rest)
+        out.append(translation(p) @ rotation(axis, angle) @ translation(-p) @ rest)
     return np.stack(out)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pyvista as pv
 
+from harness import rotation, translation
+
 
 @dataclass
 class Part:
@@ -71,27 +73,6 @@ def to_polydata(parts: Part | list[Part]) -> pv.PolyData:
     mesh.point_data["normal"] = part.normals.astype(np.float32)
     mesh.cell_data["material"] = part.material.astype(np.int32)
     return mesh
-
-
-# --------------------------------------------------------------------------- transforms
-
-
-def translate(t) -> np.ndarray:
-    """4x4 translation by ``t``."""
-    m = np.eye(4)
-    m[:3, 3] = t
-    return m
-
-
-def rotate(axis, degrees: float) -> np.ndarray:
-    """4x4 rotation by ``degrees`` about the unit ``axis`` through the origin (Rodrigues)."""
-    a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
-    t = np.radians(degrees)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    m = np.eye(4)
-    m[:3, :3] = np.eye(3) + np.sin(t) * k + (1 - np.cos(t)) * (k @ k)
-    return m
 
 
 # --------------------------------------------------------------------------- builders
@@ -158,8 +139,8 @@ def cylinder(radius: float, height: float, material: int, segments: int = 16, ca
     side = Part(pts, faces, uv, nrm, np.full(len(faces), material, np.int32))
     if not caps:
         return side
-    return merge([side, disk(rt, material, segments).transformed(translate((0, height, 0))),
-                  disk(radius, material, segments).transformed(rotate((1, 0, 0), 180))])
+    return merge([side, disk(rt, material, segments).transformed(translation((0, height, 0))),
+                  disk(radius, material, segments).transformed(rotation((1, 0, 0), 180))])
 
 
 def disk(radius: float, material: int, segments: int = 16) -> Part:
@@ -289,7 +270,7 @@ def plant(rng: np.random.Generator, leaf_material: int, n_leaves: int = 40, heig
         tilt = rng.uniform(10, 70)
         yaw = rng.uniform(0, 360)
         h = rng.uniform(0.2, 1.0) * height
-        m = translate((0, h, 0)) @ rotate((0, 1, 0), yaw) @ rotate((0, 0, 1), tilt)
+        m = translation((0, h, 0)) @ rotation((0, 1, 0), yaw) @ rotation((0, 0, 1), tilt)
         parts.append(lf.transformed(m))
     return merge(parts)
 
@@ -305,6 +286,6 @@ def canopy(rng: np.random.Generator, center, radii, leaf_material: int, n_leaves
     parts = []
     for k in range(n_leaves):
         lf = leaf(leaf_size * rng.uniform(0.6, 1.3), leaf_size * 0.45, leaf_material, bend=rng.uniform(0, 0.3))
-        m = translate(pos[k]) @ rotate(rng.normal(size=3), rng.uniform(0, 360))
+        m = translation(pos[k]) @ rotation(rng.normal(size=3), rng.uniform(0, 360))
         parts.append(lf.transformed(m))
     return merge(parts)

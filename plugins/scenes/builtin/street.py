@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness import CameraPath, Material, Scene, SceneObject
+from harness import CameraPath, Material, Scene, SceneObject, rotation, translation
 
 from . import textures
 from .assemble import suite_scene
 from .lighting import sky, sun
-from .primitives import box, cylinder, merge, rotate, to_polydata, translate
+from .primitives import box, cylinder, merge, to_polydata
 
 FRAMES = 24
 SPEC = {
@@ -77,11 +77,11 @@ def _street_furniture() -> list:
     for x in np.arange(-36.0, 37.0, 9.0):
         for sign in (-1.0, 1.0):
             z = sign * 4.4
-            parts.append(cylinder(0.07, 5.0, METAL, segments=8).transformed(translate((x, 0.15, z))))
+            parts.append(cylinder(0.07, 5.0, METAL, segments=8).transformed(translation((x, 0.15, z))))
             parts.append(box((x - 0.3, 5.0, z - 0.15), (x + 0.3, 5.15, z + 0.15), METAL))
             parts.append(box((x - 0.25, 4.95, z - 0.12), (x + 0.25, 5.0, z + 0.12), LAMP))
     for x in np.arange(-12.0, 12.0, 1.6):  # bollards along the near kerb
-        parts.append(cylinder(0.1, 0.9, METAL, segments=10).transformed(translate((x, 0.15, 4.25))))
+        parts.append(cylinder(0.1, 0.9, METAL, segments=10).transformed(translation((x, 0.15, 4.25))))
     return parts
 
 
@@ -96,20 +96,20 @@ def _car() -> tuple:
         box((0.95, 1.0, -0.72), (1.02, 1.38, 0.72), WINDOW),
     ])
     wheel = cylinder(WHEEL_RADIUS, 0.22, TIRE, segments=14)
-    wheel = wheel.transformed(rotate((1, 0, 0), 90) @ translate((0, -0.11, 0)))
+    wheel = wheel.transformed(rotation((1, 0, 0), 90) @ translation((0, -0.11, 0)))
     hub = box((-0.12, -0.12, -0.13), (0.12, 0.12, 0.13), METAL)  # visible spokes make rotation measurable
     return merge([body, windows]), merge([wheel, hub])
 
 
 def _car_transforms() -> tuple[np.ndarray, list[np.ndarray]]:
     xs = np.linspace(-14.0, 10.0, FRAMES)
-    body = np.stack([translate((x, 0.0, -1.8)) for x in xs])
+    body = np.stack([translation((x, 0.0, -1.8)) for x in xs])
     wheels = []
     for ox, oz in ((-1.35, -0.85), (1.35, -0.85), (-1.35, 0.85), (1.35, 0.85)):
         frames = []
         for x in xs:
             roll = -np.degrees((x - xs[0]) / WHEEL_RADIUS)  # rolling without slipping towards +x
-            frames.append(translate((x + ox, WHEEL_RADIUS, -1.8 + oz)) @ rotate((0, 0, 1), roll))
+            frames.append(translation((x + ox, WHEEL_RADIUS, -1.8 + oz)) @ rotation((0, 0, 1), roll))
         wheels.append(np.stack(frames))
     return body, wheels
 

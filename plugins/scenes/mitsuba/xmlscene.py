@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from harness import rotation
+
 
 class MitsubaWarning(UserWarning):
     """An element of a Mitsuba scene was approximated or skipped."""
@@ -170,22 +172,13 @@ def transform(node: ET.Element | None) -> np.ndarray:
             else:
                 t[:3, :3] = np.diag(vector(step, (1.0, 1.0, 1.0)))
         elif step.tag == "rotate":
-            t = _rotation(vector(step), float(step.get("angle", "0")))
+            t = rotation(vector(step), float(step.get("angle", "0")))
         elif step.tag == "lookat":
             t = lookat(step)
         else:
             warn(f"unknown transform step <{step.tag}> skipped")
             continue
         m = t @ m
-    return m
-
-
-def _rotation(axis: np.ndarray, degrees: float) -> np.ndarray:
-    a = axis / max(np.linalg.norm(axis), 1e-12)
-    th = np.radians(degrees)
-    k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    m = np.eye(4)
-    m[:3, :3] = np.eye(3) + np.sin(th) * k + (1 - np.cos(th)) * (k @ k)
     return m
 
 

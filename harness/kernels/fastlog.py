@@ -1,9 +1,10 @@
 """A branch-free, vectorizable natural logarithm for positive, normal float32 values.
 
-Used for the frame's log-average luminance (one log per pixel; libm's scalar ``log`` cost more
-than the rest of that pass). ``x = 2**e * m`` with ``m`` in [sqrt(1/2), sqrt(2)) from the float's
-bits, then ``log m = 2 atanh(t)``, ``t = (m - 1) / (m + 1)``, by its odd series to ``t**11``.
-The series runs in float64: absolute error below 1e-10 (the tests bound it).
+``x = 2**e * m`` with ``m`` in [sqrt(1/2), sqrt(2)) from the float's bits, then ``log m = 2
+atanh(t)``, ``t = (m - 1) / (m + 1)``, by its odd series to ``t**11``. The series runs in
+float64: absolute error below 1e-10 (``tests/test_kernels.py`` bounds it). Its float64 division
+vectorises where the caller compiles with ``error_model="numpy"`` (the function is inlined into
+its caller, with the caller's options).
 """
 
 from __future__ import annotations
@@ -11,14 +12,15 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .fastexp import LN2, float32_bits_as_int32, int32_bits_as_float32
+from harness.kernels.bits import float32_bits_as_int32, int32_bits_as_float32
+from harness.kernels.fastexp import LN2
 
 SQRT_HALF_BITS = 0x3F3504F3  # bits of float32 sqrt(1/2)
 
 
 @njit(inline="always", cache=True, fastmath=True)
 def fast_log(x):
-    """``log(x)`` for a positive, normal, finite float32 ``x``; returns float64.
+    """``log(x)`` for a positive, normal, finite float32 ``x``.
 
     Parameters
     ----------
@@ -42,12 +44,3 @@ def fast_log(x):
     p = p * t2 + 1.0 / 3.0
     p = p * t2 + 1.0
     return np.float64(e) * LN2 + 2.0 * t * p
-
-
-@njit(cache=True, fastmath=True)
-def fast_log_array(x):
-    """:func:`fast_log` over a 1-D float32 array (for tests)."""
-    out = np.empty(x.shape[0], np.float64)
-    for i in range(x.shape[0]):
-        out[i] = fast_log(x[i])
-    return out

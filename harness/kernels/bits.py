@@ -1,0 +1,54 @@
+"""Bit casts between float32 and int32 inside Numba code (an LLVM ``bitcast``: no instruction).
+
+The fast exponentials and logarithm build and read float32 exponent fields with them; a test of
+the exponent bits also tells a finite float32 from inf and NaN where ``fastmath`` folds
+``math.isfinite`` away.
+"""
+
+from __future__ import annotations
+
+from numba import types
+from numba.extending import intrinsic
+
+
+@intrinsic
+def int32_bits_as_float32(typingctx, bits):
+    """Reinterpret the 32 bits of an int32 as a float32.
+
+    Parameters
+    ----------
+    bits : int32
+        Only an int32 is accepted: cast a wider integer with ``np.int32`` first.
+
+    Returns
+    -------
+    float32
+    """
+    if bits != types.int32:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(types.float32))
+
+    return types.float32(types.int32), codegen
+
+
+@intrinsic
+def float32_bits_as_int32(typingctx, value):
+    """Reinterpret the 32 bits of a float32 as an int32.
+
+    Parameters
+    ----------
+    value : float32
+
+    Returns
+    -------
+    int32
+    """
+    if value != types.float32:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(types.int32))
+
+    return types.int32(types.float32), codegen
