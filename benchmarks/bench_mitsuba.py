@@ -22,7 +22,7 @@ the share of pixels in objects within 2%. The loader's approximations (what the 
 differently from Mitsuba 3) are counted; they explain the outliers.
 
 ``speed``: frames of ``spp`` samples at ``width`` x ``height`` rendered by the renderers in turn
-(one warm-up frame each, then ``rounds`` rounds alternating them, so all see the same machine
+(two warm-up frames each, then ``rounds`` rounds alternating them, so all see the same machine
 load), wall clock and process CPU time per frame (median), paths per second (wall), and the time
 of a 4096-spp 1280x720 reference frame projected from it, alone and on ``--workers`` workers of
 the same kind through Dask (references split into independent sample batches, so N workers
@@ -30,8 +30,18 @@ divide the time by about N; the cluster's overhead is not included). ``--variant
 ``mitsuba`` renderer's Mitsuba variant (``cuda_ad_rgb`` on a GPU machine; give it more ``--spp``
 there, a 1-spp 1280x720 frame is too small to fill a GPU). Besides the table, each (scene,
 renderer) prints one machine-readable line ``RESULT {json}`` with the scene, renderer, variant,
-device, resolution, spp, rounds, seconds per frame (wall and CPU), paths per second and the
-projected reference seconds.
+device, resolution, spp, rounds, seconds per frame (wall and CPU), paths per second (wall and
+CPU) and the projected reference seconds (wall and CPU). On a loaded CPU the CPU-time figures are
+the ones to compare (CPU-seconds divided by the idle cores give an idle machine's wall time); on
+a GPU, the wall time. ``--scene-root`` names the folder of the scene folders; ``--bare``
+(taken by itself where PyVista, which the scene plugin needs, is missing) reads each scene for
+the ``mitsuba`` renderer alone (:func:`bare_scene`: its sensor as the camera, no triangles, so the
+path tracer is not timed on it; a Mitsuba 0.6 sun/sky scene such as the classroom is skipped).
+On a GPU machine without the project installed::
+
+    pip install mitsuba     # with numpy, numba, pluggy, pyyaml, scipy, xxhash (harness's imports)
+    python benchmarks/bench_mitsuba.py speed --variant cuda_ad_rgb --renderers mitsuba --spp 64 \
+        --scene-root SCENES --scenes living-room sponza
 
 ``sequence``: the scene with a camera path of this script (a dolly of 1% of the scene's size per
 frame along the view and a pan of 1 degree per frame) rendered by the ``mitsuba`` renderer, 1 spp:
@@ -53,6 +63,7 @@ import os
 import platform
 import statistics
 import subprocess
+import sys
 import time
 import warnings
 from pathlib import Path
@@ -60,23 +71,78 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:  # a checkout that is not installed (a GPU machine with Mitsuba's wheels alone)
+    sys.path.insert(0, str(ROOT))
 SCENES = ROOT.parent / "shared" / "scenes"
 GBUFFER = ("position", "normal", "albedo", "depth", "object_id")
 REFERENCE_SPP = 4096
 REFERENCE_PIXELS = 1280 * 720
 
 
-def shared_scene(name: str):
-    """The scene plugin's scene of ``../shared/scenes/<name>``, or None (with a message) where absent."""
-    from plugins.scenes.mitsuba import load
+def shared_scene(name: str, root: Path = SCENES, bare: bool = False):
+    """The scene of ``root/<name>`` as the Mitsuba scene plugin loads it, or None (with a message) where absent.
 
-    folder = SCENES / name
+    ``bare`` (or a machine without PyVista, which the scene plugin needs): :func:`bare_scene`.
+    """
+    folder = Path(root) / name
     if not (folder / "scene.xml").is_file():
         print(f"skipping {name!r}: no scene folder {folder}")
         return None
+    if not bare:
+        try:
+            from plugins.scenes.mitsuba import load
+        except ImportError as exc:
+            print(f"the Mitsuba scene plugin cannot be imported ({exc}): scenes for the mitsuba renderer alone")
+            bare = True
+    if bare:
+        return bare_scene(folder, name)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return load(folder, name=name)
+
+
+def bare_scene(folder: Path, name: str):
+    """A harness scene of ``folder/scene.xml`` for the ``mitsuba`` renderer alone, without the scene plugin.
+
+    The camera is the file's sensor as Mitsuba 3 reads it (its ``to_world`` and field of view); the
+    scene has no objects (the path tracer cannot render it; every shape gets an object id of its
+    own). A Mitsuba 0.6 sun/sky, which only the scene plugin turns into Mitsuba 3's ``sunsky``, is
+    not rendered: such a scene returns None with a message.
+    """
+    import xml.etree.ElementTree as ET
+
+    import mitsuba as mi
+
+    from harness import CameraPath, Scene
+    from plugins.renderers.mitsuba.variants import active
+
+    path = folder / "scene.xml"
+    root = ET.parse(path).getroot()
+    if any(e.get("type") in ("sun", "sky", "sunsky") for e in root.findall("emitter")) and \
+            root.get("version", "0.6.0").startswith("0."):
+        print(f"skipping {name!r}: its Mitsuba 0.6 sun/sky needs the scene plugin (and PyVista)")
+        return None
+    sensor = root.find("sensor")
+    if sensor is None:
+        print(f"skipping {name!r}: no sensor in {path}")
+        return None
+    for child in sensor.findall("sampler") + sensor.findall("film"):
+        sensor.remove(child)
+    film = ET.SubElement(sensor, "film", type="hdrfilm")  # the size alone (0.6 films carry tone mapping)
+    film.extend(n for n in root.iter("integer") if n.get("name") in ("width", "height"))
+    only = ET.Element("scene", version=root.get("version", "0.6.0"))
+    only.extend(root.findall("default") + [sensor])
+    with active(mi, "scalar_rgb"):
+        camera = mi.load_string(ET.tostring(only, encoding="unicode")).sensors()[0]
+        params = mi.traverse(camera)
+        matrix = np.array(params["to_world"].matrix, np.float64)
+        width, height = (int(v) for v in camera.film().size())
+        x_fov = float(params["x_fov"][0] if hasattr(params["x_fov"], "__len__") else params["x_fov"])
+    eye, forward, up = matrix[:3, 3], matrix[:3, 2], matrix[:3, 1]
+    fov = np.degrees(2.0 * np.arctan(np.tan(np.radians(x_fov) / 2.0) * height / width))
+    return Scene(name=name, kind="mesh", resolution=(width, height), camera=CameraPath(
+        positions=[eye], targets=[eye + forward], up=tuple(float(v) for v in up), fov=float(fov)),
+        params={"format": "mitsuba", "file": path.name}, max_depth=5, source=str(folder))
 
 
 def renderers():
@@ -182,43 +248,52 @@ def device_name(variant: str) -> str:
 
 
 def speed(args) -> None:
-    timed = renderer_list(args.renderers, args.variant)
+    everyone = renderer_list(args.renderers, args.variant)
     size = (args.width, args.height)
     paths = args.width * args.height * args.spp
-    names = {r: (f"mitsuba {renderer.variant}" if r == "mitsuba" else r) for r, renderer in timed.items()}
+    names = {r: (f"mitsuba {renderer.variant}" if r == "mitsuba" else r) for r, renderer in everyone.items()}
     print(f"{args.width}x{args.height}, {args.spp} spp per frame, {args.rounds} rounds alternating "
           f"{', '.join(names.values())}; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     for name in args.scenes:
-        scene = shared_scene(name)
+        scene = shared_scene(name, args.scene_root, args.bare)
         if scene is None:
             continue
+        timed = dict(everyone)
+        if not scene.objects and timed.pop("pathtracer", None) is not None:
+            print(f"{name}: the path tracer is not timed (a scene without the scene plugin has no triangles)")
         times = {r: [] for r in timed}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            for renderer in timed.values():  # warm-up: loading, BVH, compilation
-                renderer.render(scene, 0, spp=args.spp, seed=0, resolution=size)
+            for renderer in timed.values():  # warm-up: loading, BVH, compilation (Dr.Jit: two kernel hashes seen)
+                for seed in (0, 1):
+                    renderer.render(scene, 0, spp=args.spp, seed=seed, resolution=size)
             for k in range(args.rounds):
                 for r, renderer in timed.items():
                     wall, cpu = time.perf_counter(), time.process_time()
-                    renderer.render(scene, 0, spp=args.spp, seed=k + 1, resolution=size)
+                    renderer.render(scene, 0, spp=args.spp, seed=k + 2, resolution=size)
                     times[r].append((time.perf_counter() - wall, time.process_time() - cpu))
-        rates = {}
+        rates, cpu_rates = {}, {}
         for r, samples in times.items():
             wall = statistics.median(s[0] for s in samples)
             cpu = statistics.median(s[1] for s in samples)
-            rates[r] = paths / wall
+            rates[r], cpu_rates[r] = paths / wall, paths / max(cpu, 1e-9)
             reference = REFERENCE_PIXELS * REFERENCE_SPP / rates[r]
+            reference_cpu = REFERENCE_PIXELS * REFERENCE_SPP / cpu_rates[r]
             variant = getattr(timed[r], "variant", None)
             print(f"{name:<12} {names[r]:<24} {wall:8.3f} s wall {cpu:8.3f} s CPU per frame, {rates[r] / 1e6:7.3f} "
-                  f"Mpaths/s; a {REFERENCE_SPP}-spp 1280x720 reference frame: {reference / 3600:7.3f} h")
+                  f"Mpaths/s, {cpu_rates[r] / 1e6:7.3f} Mpaths/CPU-s; a {REFERENCE_SPP}-spp 1280x720 reference "
+                  f"frame: {reference / 3600:7.3f} h wall, {reference_cpu / 3600:7.3f} CPU-h")
             record = {"scene": name, "renderer": r, "variant": variant, "device": device_name(variant or "cpu"),
                       "width": args.width, "height": args.height, "spp": args.spp, "rounds": args.rounds,
                       "wall_s_per_frame": round(wall, 4), "cpu_s_per_frame": round(cpu, 4),
-                      "paths_per_s": round(rates[r], 1), "reference_s_1280x720_4096spp": round(reference, 1),
+                      "paths_per_s": round(rates[r], 1), "paths_per_cpu_s": round(cpu_rates[r], 1),
+                      "reference_s_1280x720_4096spp": round(reference, 1),
+                      "reference_cpu_s_1280x720_4096spp": round(reference_cpu, 1),
                       "load_average": round(os.getloadavg()[0], 2)}
             print("RESULT " + json.dumps(record), flush=True)
         if "mitsuba" in rates and "pathtracer" in rates:
-            print(f"{name:<12} mitsuba / pathtracer paths per second: {rates['mitsuba'] / rates['pathtracer']:.2f}")
+            print(f"{name:<12} mitsuba / pathtracer paths per second: {rates['mitsuba'] / rates['pathtracer']:.2f} "
+                  f"(wall), {cpu_rates['mitsuba'] / cpu_rates['pathtracer']:.2f} (CPU)")
         for r, rate in rates.items():
             hours = REFERENCE_PIXELS * REFERENCE_SPP / rate / 3600
             spread = ", ".join(f"{n} workers {hours / n:.2f} h" for n in args.workers)
@@ -296,6 +371,10 @@ def main() -> None:
     a.add_argument("--seed", type=int, default=1)
     s = sub.add_parser("speed")
     s.add_argument("--scenes", nargs="+", default=["classroom", "living-room", "sponza"])
+    s.add_argument("--scene-root", type=Path, default=SCENES,
+                   help="folder holding the scene folders (default ../shared/scenes beside the project)")
+    s.add_argument("--bare", action="store_true",
+                   help="scenes without the scene plugin (no PyVista needed): the mitsuba renderer alone")
     s.add_argument("--renderers", nargs="+", choices=["pathtracer", "mitsuba"], default=["pathtracer", "mitsuba"])
     s.add_argument("--variant", default="llvm_ad_rgb",
                    help="Mitsuba variant: llvm_ad_rgb, cuda_ad_rgb, scalar_rgb (or auto, llvm, cuda, scalar)")

@@ -308,3 +308,28 @@ def test_camera_path_and_object_motion(box, jit):
     assert same.mean() > 0.6
     gap = np.linalg.norm(f0["position"][y[same], x[same]] - f1["position"][same], axis=-1)
     assert np.median(gap) < 0.05
+
+
+@pytest.mark.slow
+def test_area_references_integrate_the_pixel_as_mitsuba_does(box, jit):
+    """References over the pixel area converge to Mitsuba's own ``mi.render`` (box filter, uniform
+    points in the pixel); pixel-centre references differ from it at the edges, by more than the noise."""
+    import mitsuba as mi
+
+    from plugins.renderers.mitsuba.camera import sensor
+    from plugins.renderers.mitsuba.variants import active
+
+    spp = 512
+    area = jit.reference(box, 0, spp=spp, seed=3).astype(np.float64)
+    centre = MitsubaRenderer(variant=jit.variant, reference_pixel="centre").reference(
+        box, 0, spp=spp, seed=3).astype(np.float64)
+    loaded, view = jit.loaded(box), jit.setup(box, 0).view
+    with active(mi, jit.variant):
+        theirs = np.array(mi.render(loaded.engine.scene, sensor=sensor(mi, view), integrator=loaded.engine.integrator,
+                                    spp=spp, seed=11), np.float64)[..., :3]
+    error_area = np.mean((area - theirs) ** 2)
+    error_centre = np.mean((centre - theirs) ** 2)
+    assert error_area < 0.5 * error_centre, (error_area, error_centre)
+    np.testing.assert_allclose(area.mean(), theirs.mean(), rtol=0.01)
+    with pytest.raises(ValueError, match="reference_pixel"):
+        MitsubaRenderer(variant="scalar", reference_pixel="corner")

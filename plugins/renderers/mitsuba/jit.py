@@ -14,11 +14,13 @@ from .camera import sensor
 from .streams import lane_keys, stream_sampler
 
 
-def primary_rays(mi, camera, pixels, width: int, height: int):
-    """Rays of sensor ``camera`` through the centres of row-major ``pixels`` (mitsuba.UInt32) of a
-    ``width`` x ``height`` film."""
-    x = (mi.Float(pixels % width) + 0.5) / width
-    y = (mi.Float(pixels // width) + 0.5) / height
+def primary_rays(mi, camera, pixels, width: int, height: int, offset=None):
+    """Rays of sensor ``camera`` through row-major ``pixels`` (mitsuba.UInt32) of a ``width`` x
+    ``height`` film: through their centres, or through ``offset`` (mitsuba.Point2f in [0, 1)^2, per
+    lane) inside them."""
+    dx, dy = (0.5, 0.5) if offset is None else (offset.x, offset.y)
+    x = (mi.Float(pixels % width) + dx) / width
+    y = (mi.Float(pixels // width) + dy) / height
     ray, _ = camera.sample_ray(0.0, 0.5, mi.Point2f(x, y), mi.Point2f(0.5, 0.5))
     return ray
 
@@ -52,7 +54,8 @@ class JitEngine:
         for shape, index in zip(shapes, registry):
             self._ids[index] = shape_ids[shape.id()]
 
-    def radiance(self, view: dict, pixels: np.ndarray, samples: np.ndarray, base: int) -> np.ndarray:
+    def radiance(self, view: dict, pixels: np.ndarray, samples: np.ndarray, base: int,
+                 area: bool = False) -> np.ndarray:
         """Radiance of one sample per lane, (n, 3) float32 (non-finite samples become 0).
 
         Parameters
@@ -63,13 +66,17 @@ class JitEngine:
             Row-major pixel and sample index of each lane (n <= :attr:`max_lanes`).
         base : int
             :func:`.streams.base_key` of the seed, frame and purpose.
+        area : bool
+            The primary ray goes through a point uniform in the pixel (the lane's first two random
+            numbers; references integrate over the pixel area, box filter) instead of its centre.
         """
         mi = self.mi
         p = mi.UInt32(np.ascontiguousarray(pixels, np.uint32))
         s = mi.UInt32(np.ascontiguousarray(samples, np.uint32))
-        ray = primary_rays(mi, sensor(mi, view), p, view["width"], view["height"])
         state, sequence = lane_keys(mi, base, p, s)
         self._sampler.start(state, sequence)
+        offset = self._sampler.next_2d() if area else None
+        ray = primary_rays(mi, sensor(mi, view), p, view["width"], view["height"], offset)
         color, _, _ = self.integrator.sample(self.scene, self._sampler, ray, None, True)
         out = np.array(color, np.float32).reshape(3, -1).T.copy()
         out[~np.isfinite(out).all(axis=1)] = 0.0

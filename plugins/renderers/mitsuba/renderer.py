@@ -27,6 +27,8 @@ from .variants import active, choose
 OWNER = "renderer 'mitsuba'"
 #: environment variable choosing the variant when the factory is given none
 VARIANT_VARIABLE = "DENOISE_MITSUBA_VARIANT"
+#: where the primary rays of reference samples go in their pixel
+REFERENCE_PIXELS = ("area", "centre")
 GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "emission")
 
 
@@ -141,20 +143,28 @@ class MitsubaRenderer:
         Pixels with fewer than 2 samples get the ``variance`` channel from this many extra,
         independent samples per pixel (which do not enter ``color``); 0 or 1: such pixels report
         0 (unknown), as the path tracer does.
+    reference_pixel : {"area", "centre"}
+        References (:meth:`accumulate`, :meth:`reference`) integrate over the pixel area (a box
+        filter: each sample's primary ray through a uniform point of the pixel, as Mitsuba 3 and
+        the path tracer's references) or take the pixel centre, as the noisy frames do.
     """
 
     def __init__(self, variant: str | None = None, max_depth: int | None = None, rr_depth: int = 5,
-                 variance_spp: int = 8):
+                 variance_spp: int = 8, reference_pixel: str = "area"):
         if max_depth is not None and int(max_depth) < 1:
             raise ValueError(f"{OWNER}: max_depth must be >= 1, got {max_depth}")
         if int(rr_depth) < 1:
             raise ValueError(f"{OWNER}: rr_depth must be >= 1, got {rr_depth}")
         if int(variance_spp) < 0:
             raise ValueError(f"{OWNER}: variance_spp must be >= 0, got {variance_spp}")
+        if reference_pixel not in REFERENCE_PIXELS:
+            raise ValueError(f"{OWNER}: reference_pixel must be one of {list(REFERENCE_PIXELS)}, got "
+                             f"{reference_pixel!r}")
         self.variant = choose(variant or os.environ.get(VARIANT_VARIABLE) or "auto")
         self.max_depth = None if max_depth is None else int(max_depth)
         self.rr_depth = int(rr_depth)
         self.variance_spp = int(variance_spp)
+        self.reference_pixel = reference_pixel
         self._loaded: OrderedDict = OrderedDict()
         self._setups: OrderedDict = OrderedDict()
         self._lock = threading.RLock()
@@ -162,7 +172,8 @@ class MitsubaRenderer:
     def settings(self) -> dict:
         """Settings that change images (part of cache keys), the variant and Mitsuba's version included."""
         return {"variant": self.variant, "max_depth": self.max_depth, "rr_depth": self.rr_depth,
-                "variance_spp": self.variance_spp, "mitsuba": importlib.metadata.version("mitsuba")}
+                "variance_spp": self.variance_spp, "reference_pixel": self.reference_pixel,
+                "mitsuba": importlib.metadata.version("mitsuba")}
 
     # -- preparation ---------------------------------------------------------------------------
     def _mitsuba(self):
@@ -202,8 +213,9 @@ class MitsubaRenderer:
             return self._setups[key]
 
     def add_samples(self, setup: FrameSetup, state: PixelSums, counts: np.ndarray, seed: int, *,
-                    purpose: int = COLOR, squares: bool = True) -> None:
-        """Take ``counts[p]`` more samples in pixel ``p``, continuing its stream (in place)."""
+                    purpose: int = COLOR, squares: bool = True, area: bool = False) -> None:
+        """Take ``counts[p]`` more samples in pixel ``p``, continuing its stream (in place); ``area``:
+        primary rays uniform in the pixel rather than through its centre."""
         counts = np.ascontiguousarray(counts, np.int64).ravel()
         if counts.size and int(counts.min()) < 0:
             raise ValueError(f"{OWNER}: sample counts must be >= 0")
@@ -214,7 +226,7 @@ class MitsubaRenderer:
             self._threads(mi)
             setup.loaded.poser.pose(setup.index)
             for pixels, samples in lane_batches(state.spp, counts, engine.max_lanes):
-                state.add(pixels, engine.radiance(setup.view, pixels, samples, base), squares)
+                state.add(pixels, engine.radiance(setup.view, pixels, samples, base, area), squares)
         state.spp += counts
 
     def _threads(self, mi) -> None:
@@ -296,13 +308,15 @@ class MitsubaRenderer:
 
     def accumulate(self, scene: Scene, frame_index: int, *, first_sample: int, count: int, seed: int = 0,
                    resolution=None) -> np.ndarray:
-        """Sum of the radiance of samples ``[first_sample, first_sample + count)`` per pixel, (H, W, 3) float64."""
+        """Sum of the radiance of samples ``[first_sample, first_sample + count)`` per pixel, (H, W, 3) float64
+        (the references' samples: over the pixel area unless ``reference_pixel="centre"``)."""
         if int(first_sample) < 0 or int(count) < 0:
             raise ValueError(f"{OWNER}: first_sample and count must be >= 0, got {first_sample}, {count}")
         setup = self.setup(scene, frame_index, resolution)
         state = PixelSums(setup.width * setup.height)
         state.spp[:] = int(first_sample)
-        self.add_samples(setup, state, np.full(state.spp.shape, int(count), np.int64), seed, squares=False)
+        self.add_samples(setup, state, np.full(state.spp.shape, int(count), np.int64), seed, squares=False,
+                         area=self.reference_pixel == "area")
         return state.acc.reshape(setup.height, setup.width, 3)
 
     def reference(self, scene: Scene, frame_index: int, *, spp: int = 4096, seed: int = 0,

@@ -45,8 +45,10 @@ class ScalarEngine:
         self._aov = mi.load_dict({"type": "aov", "aovs": AOVS})
         self._emitted = mi.load_dict({"type": "path", "max_depth": 1})
 
-    def radiance(self, view: dict, pixels: np.ndarray, samples: np.ndarray, base: int) -> np.ndarray:
-        """Radiance of one sample per lane, (n, 3) float32: one ``mi.render`` per distinct sample index."""
+    def radiance(self, view: dict, pixels: np.ndarray, samples: np.ndarray, base: int,
+                 area: bool = True) -> np.ndarray:
+        """Radiance of one sample per lane, (n, 3) float32: one ``mi.render`` per distinct sample index
+        (its primary rays are uniform in the pixel whatever ``area`` says)."""
         camera = sensor(self.mi, view)
         out = np.zeros((len(pixels), 3), np.float32)
         for s in np.unique(samples):
