@@ -333,3 +333,20 @@ def test_area_references_integrate_the_pixel_as_mitsuba_does(box, jit):
     np.testing.assert_allclose(area.mean(), theirs.mean(), rtol=0.01)
     with pytest.raises(ValueError, match="reference_pixel"):
         MitsubaRenderer(variant="scalar", reference_pixel="corner")
+
+
+def test_files_outside_the_scene_folder_are_refused(tmp_path, monkeypatch):
+    """A scene file changed after loading to name a mesh outside its folder (or through a default) is
+    refused in one line, unless the scene plugin's variable allows it."""
+    scene = box_scene(tmp_path / "room")
+    (tmp_path / "panel.obj").write_text(PANEL_OBJ)
+    xml = tmp_path / "room" / "scene.xml"
+    for named in ('"../panel.obj"', '"$mesh"'):
+        text = BOX_XML.replace('"panel.obj"', named).replace('<scene version="3.0.0">', '<scene version="3.0.0">'
+                                                             '<default name="mesh" value="../panel.obj"/>')
+        xml.write_text(text)
+        with pytest.raises(ValueError, match="outside the scene folder") as err:
+            MitsubaRenderer(variant="scalar").render(scene, 0)
+        assert "\n" not in str(err.value)
+    monkeypatch.setenv("DENOISE_HARNESS_ALLOW_OUTSIDE_FILES", "1")
+    assert MitsubaRenderer(variant="scalar").render(scene, 0)["color"].shape == (24, 32, 3)

@@ -17,6 +17,10 @@ reported once as a warning:
 * properties Mitsuba 3 reports as unreferenced (``extEta`` of ``roughconductor``, ...) are
   dropped, one load attempt per error message.
 
+Files the scene names (``filename`` properties, ``<include>``) must lie inside the scene's folder
+once resolved, as for the scene plugin (a scene file is untrusted input), unless the environment
+variable :data:`ALLOW_ENV` is ``1``.
+
 Every top-level ``<shape>`` without an ``id`` gets ``harness_shape_<k>`` (``k``: its position
 among the top-level shapes), so that shapes can be found by name in the loaded scene and in
 ``mi.traverse``.
@@ -25,6 +29,7 @@ among the top-level shapes), so that shapes can be found by name in the loaded s
 from __future__ import annotations
 
 import math
+import os
 import re
 import warnings
 import xml.etree.ElementTree as ET
@@ -39,6 +44,8 @@ SHAPE_ID = "harness_shape_"
 ATTEMPTS = 50
 #: Mitsuba 0.6's sun and sky emitters
 SUN_SKY = ("sun", "sky", "sunsky")
+#: set to ``1`` to let scene files name files outside their folder (the scene plugin's variable)
+ALLOW_ENV = "DENOISE_HARNESS_ALLOW_OUTSIDE_FILES"
 
 
 class MitsubaAdaptation(UserWarning):
@@ -73,6 +80,7 @@ def adapted_xml(path: Path, sunsky: dict | None = None) -> tuple[ET.Element, lis
         ``scene.params["sunsky"]`` of the scene plugin (Mitsuba 3 ``sunsky`` parameters).
     """
     root = ET.parse(path).getroot()
+    _check_files(root, path)
     old = _version(root) < (3,)
     for tag in ("integrator", "sensor"):
         for node in root.findall(tag):
@@ -150,6 +158,28 @@ def load(mi, path: Path, sunsky: dict | None = None):
         for folder in saved:
             resolver.append(folder)
     raise ValueError(f"{OWNER}: Mitsuba 3 cannot load {path} after {ATTEMPTS} adaptations")
+
+
+def _check_files(root: ET.Element, path: Path) -> None:
+    """Refuse a file name that leads outside the scene's folder (unless :data:`ALLOW_ENV` is ``1``)."""
+    if os.environ.get(ALLOW_ENV, "") == "1":
+        return
+    folder = path.parent.resolve()
+    defaults = {d.get("name"): d.get("value") or "" for d in root.findall("default")}
+    for node in root.iter():
+        if node.tag == "include":
+            name = node.get("filename")
+        elif node.tag == "string" and _snake(node.get("name") or "") == "filename":
+            name = node.get("value")
+        else:
+            continue
+        if not name:
+            continue
+        name = re.sub(r"\$(\w+)", lambda m: defaults.get(m.group(1), m.group(0)), name)
+        target = (folder / name).resolve()
+        if target != folder and folder not in target.parents:
+            raise ValueError(f"{OWNER}: {path.name} names {name!r}, which is outside the scene folder {folder} "
+                             f"(set {ALLOW_ENV}=1 to allow files outside it)")
 
 
 def _version(root: ET.Element) -> tuple[int, ...]:
