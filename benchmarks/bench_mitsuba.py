@@ -43,12 +43,13 @@ On a GPU machine without the project installed::
     python benchmarks/bench_mitsuba.py speed --variant cuda_ad_rgb --renderers mitsuba --spp 64 \
         --scene-root SCENES --scenes living-room sponza
 
-``sequence``: the scene with a camera path of this script (a dolly of 1% of the scene's size per
-frame along the view and a pan of 1 degree per frame) rendered by the ``mitsuba`` renderer, 1 spp:
-per frame, the number of distinct object ids, the shapes of the file and the motion vectors'
-median and largest length. With ``--export FOLDER`` the sequence is also written as a capture
-(``harness.export``) with references of ``--reference-spp``, which ``denoise-bench run
---scene-dir FOLDER/<scene>-orbit`` scores with every filter.
+``sequence``: the scene as a sequence, as the scene plugin loads it (the camera path and object
+motion of its ``animation.toml``, else the generated default camera path; at most ``--frames``
+frames), rendered by the ``mitsuba`` renderer, 1 spp: per frame, the number of distinct object ids,
+the shapes of the file and the motion vectors' median and largest length. With ``--export
+FOLDER`` the sequence is also written as a capture (``harness.export``) with references of
+``--reference-spp``, which ``denoise-bench run --scene-dir FOLDER/<scene>-sequence`` scores with
+every filter.
 
 Both renderers use the machine's cores (Numba's thread count; Dr.Jit's thread pool is set to the
 same). The third-party scenes are read from ``../shared/scenes`` next to the project root; a scene
@@ -300,24 +301,6 @@ def speed(args) -> None:
             print(f"  a 4096-spp 1280x720 reference frame of {name} by {names[r]}: {hours:.3f} h here; {spread}")
 
 
-def camera_path(scene, frames: int):
-    """The first view dollied along its axis (1% of the scene size per frame), panned 1 degree per frame."""
-    from harness import CameraPath
-
-    cam = scene.camera
-    points = np.concatenate([np.asarray(o.mesh.points) for o in scene.objects])
-    step = 0.01 * float(np.linalg.norm(points.max(0) - points.min(0)))
-    right, up, forward = cam.basis(0)
-    eyes, targets = [], []
-    for k in range(frames):
-        turn = np.radians(k)
-        view = np.cos(turn) * forward + np.sin(turn) * right
-        eye = cam.eye(0) + k * step * forward
-        eyes.append(eye)
-        targets.append(eye + view)
-    return CameraPath(positions=eyes, targets=targets, up=tuple(up), fov=cam.fov, near=cam.near, far=cam.far)
-
-
 def sequence(args) -> None:
     import dataclasses
 
@@ -334,12 +317,12 @@ def sequence(args) -> None:
         scene = shared_scene(name)
         if scene is None:
             continue
-        scene = dataclasses.replace(scene, name=f"{name}-orbit", camera=camera_path(scene, args.frames),
-                                    frame_count=args.frames, resolution=size)
+        scene = dataclasses.replace(scene, name=f"{name}-sequence", frame_count=min(scene.frame_count, args.frames),
+                                    resolution=size)
         shapes = len(mitsuba.loaded(scene).engine.scene.shapes())
-        print(f"{scene.name}: {args.frames} frames at {args.width}x{args.height}, variant {mitsuba.variant}, "
+        print(f"{scene.name}: {scene.frame_count} frames at {args.width}x{args.height}, variant {mitsuba.variant}, "
               f"{shapes} shapes in the file, {len(scene.objects)} scene objects")
-        for t in range(args.frames):
+        for t in range(scene.frame_count):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 frame = mitsuba.render(scene, t, spp=1, seed=0, channels=channels)
@@ -351,7 +334,7 @@ def sequence(args) -> None:
             registry = load_plugins()
             store = RenderStore(registry, Cache(), resolution=size)
             store.add_scene(scene)
-            spec = SceneSpec(name=scene.name, version="orbit", factory=lambda s=scene: s, tags=scene.tags,
+            spec = SceneSpec(name=scene.name, version="sequence", factory=lambda s=scene: s, tags=scene.tags,
                              frames=scene.frame_count, resolution=size, kind="mesh", suite=False)
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
