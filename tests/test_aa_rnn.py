@@ -93,6 +93,7 @@ def test_inference_equals_the_training_graph(registry, tmp_path):
     assert not np.allclose(outs[-1], frames[-1]["color"], atol=1e-3), "the network changes the image"
 
 
+@pytest.mark.slow
 def test_same_seed_gives_the_same_weights_and_another_seed_others(tmp_path):
     a = train(seed=3, output=tmp_path / "a.npz", quick=True)
     b = train(seed=3, output=tmp_path / "b.npz", quick=True)
@@ -105,6 +106,7 @@ def test_same_seed_gives_the_same_weights_and_another_seed_others(tmp_path):
     assert ma["config"]["steps"] == QUICK.steps and ma["threads"] == 1
 
 
+@pytest.mark.slow
 def test_training_scenes_are_never_benchmark_scenes(registry):
     meta = load_weights(shipped_weights(DEFAULT_LAYERS))[1]
     seeds = sum((meta["scene_seeds"][k] for k in ("train", "validation", "test")), [])

@@ -2,6 +2,7 @@
 ``denoise-bench run --task antialias`` and the leaderboard per task."""
 
 import pandas as pd
+import pytest
 
 from harness import load_plugins
 from harness.plan import make_plan
@@ -37,6 +38,7 @@ def test_planner_pairs_filters_scenes_and_renderers_by_task():
     assert "not task 'antialias'" in plan.skipped[0][1]
 
 
+@pytest.mark.slow
 def test_run_task_antialias_end_to_end(tmp_path):
     out = bench(["run", "--task", "antialias", "--scenes", "aa-fence,synthetic-edges", "--resolution", "32x18",
                  "--frames", "3", "--seeds", "0", "--reference-spp", "16", "--filters", ",".join(AA_FILTERS),

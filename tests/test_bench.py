@@ -152,6 +152,7 @@ def local_table(tmp_path_factory):
     return result, threads
 
 
+@pytest.mark.slow
 def test_table_columns_are_present_and_typed(local_table):
     result, threads = local_table
     table = result.table
@@ -173,12 +174,14 @@ def test_table_columns_are_present_and_typed(local_table):
     assert "| x_of_floor | x_of_floor_cpu | peak_mb |" in markdown
 
 
+@pytest.mark.slow
 def test_a_stage_named_like_a_key_column_keeps_the_key(local_table):
     stages = local_table[0].stages
     assert set(stages["filter"]) == {"threads_probe"}
     assert (stages["filter (stage)"] == 1.5).all() and (stages["copy"] == 0.5).all()
 
 
+@pytest.mark.slow
 def test_threads_reach_the_worker(local_table):
     """The ``threads`` column is ``numba.get_num_threads()`` read in the worker during the job."""
     result, threads = local_table
@@ -187,6 +190,7 @@ def test_threads_reach_the_worker(local_table):
         assert list(table[table["filter"] == name]["threads"]) == [n for _ in range(2) for n in threads]
 
 
+@pytest.mark.slow
 def test_peak_memory_of_a_filter_that_allocates_ten_frames(local_table):
     table = local_table[0].table
     big = table[(table["filter"] == "alloc_frames") & (table["resolution"] == "256x192")]

@@ -60,6 +60,7 @@ def check(table, floor):
             assert uncorrected > truth
 
 
+@pytest.mark.slow
 def test_corrected_rmse_from_64_spp_matches_the_analytic_truth_synthetic(registry):
     store = RenderStore(registry, Cache(enabled=False), resolution=(96, 64))
     scene = "synthetic-moving"
@@ -75,6 +76,7 @@ def test_corrected_rmse_from_64_spp_matches_the_analytic_truth_synthetic(registr
         assert any(uncorrected > (1 + 2 * TOLERANCE) * exact for _, uncorrected, exact in table.values())
 
 
+@pytest.mark.slow
 def test_corrected_rmse_from_64_spp_matches_a_4096_spp_reference_cornell(registry):
     """Path-traced Cornell box at 32x32 (emitter pixels excluded as in a run)."""
     store = RenderStore(registry, Cache(enabled=False), resolution=(32, 32))

@@ -505,3 +505,21 @@ def test_cuda_simulator_matches_cpu():
         assert diff["var"] < 1e-6 and diff["min_sure"] < 1e-6, diff
     # the selection is the same but for exact ties (equal smoothed SURE, checked above)
     assert given["best_mismatch"] == 0 and estimated["best_mismatch"] <= 12, estimated
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (7, 5), (1, 9)])
+def test_sbf_adaptive_with_sampler_on_small_and_odd_frames(shape):
+    """Adaptive mode on 1x1, odd and one-row frames: finite output, the exact sample budget."""
+    reg = load_plugins()
+    if "synthetic" not in reg.renderers or "synthetic-edges" not in reg.scenes:
+        pytest.skip("the synthetic renderer / synthetic-edges scene is not registered")
+    renderer = reg.renderers["synthetic"].factory()
+    scene = reg.scenes["synthetic-edges"].factory()
+    h, w = shape
+    sampler = renderer.sampler(scene, 0, spp=1, seed=3, channels=frozenset(CHANNELS),
+                               resolution=(w, h))
+    before = sampler.samples_used
+    f = SBFFilter(mode="adaptive", extra_spp=4.0, passes=2)
+    out = f(sampler.frame, sampler=sampler)
+    assert out.shape == (h, w, 3) and np.isfinite(out).all()
+    assert sampler.samples_used - before == f.samples_added <= round(4.0 * h * w)

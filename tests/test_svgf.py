@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from harness import CHANNELS, Frame, FrameMeta, kernels, load_plugins
+from harness.testing.frames import make_frame
 
 ROOT = Path(__file__).resolve().parents[1]
 WALL, OBJECT = 0, 2  # object ids of the synthetic renderer's regions
@@ -272,6 +273,9 @@ def test_colour_is_the_authority_over_direct(registry, renderer):
     i, j = np.argwhere(frame["object_id"] >= 0)[len(np.argwhere(frame["object_id"] >= 0)) // 2]
     color[i, j] += 20.0
     assert _svgf(registry)(frame.replace(color=color))[i, j].sum() > base[i, j].sum() + 1.0
+    indirect = frame["indirect"].copy()
+    indirect[i, j] = np.nan
+    assert np.isfinite(_svgf(registry)(frame.replace(indirect=indirect))).all()
 
 
 def test_cuda_backend_agrees_with_cpu_in_simulator():
@@ -541,3 +545,37 @@ def test_cpu_prepare_rows_equal_the_per_pixel_preparation(nsig, has_emission):
     remodulate_per_pixel(sig, albedo, valid, args[0], args[3], has_emission, want_out)
     remodulate_per_row(sig, albedo, valid, args[0], args[3], has_emission, got_out)
     np.testing.assert_array_equal(want_out, got_out)
+
+
+def _noisy_static(t, h=10, w=12):
+    """Frame ``t`` of a static scene: the same geometry, fresh exponential noise on the colour."""
+    fr = make_frame(h, w, {"color", "albedo", "normal", "depth", "object_id", "motion", "direct", "indirect",
+                           "emission"}, seed=0, index=t)
+    rng = np.random.default_rng(1000 + t)
+    clean = fr["albedo"] * np.float32(0.8)
+    color = (clean * rng.exponential(1.0, clean.shape[:2] + (1,))).astype(np.float32)
+    direct = (color * np.float32(0.6)).astype(np.float32)
+    return fr.replace(color=color, direct=direct, indirect=color - direct, emission=np.zeros_like(color)), clean
+
+
+@pytest.mark.slow
+def test_thousand_static_frames_converge(registry):
+    """1,000 frames of a static noisy scene: history capped, output energy bounded, no drift."""
+    spec = registry.filters["svgf"]
+    f = spec.factory(backend="cpu")
+    means, errors = [], []
+    for t in range(1000):
+        frame, clean = _noisy_static(t)
+        out = f(frame)
+        assert np.isfinite(out).all(), t
+        means.append(float(out.mean()))
+        errors.append(float(np.abs(out - clean).mean()))
+    means, errors = np.array(means), np.array(errors)
+    assert f.history_length().max() <= spec.params["max_history"]
+    truth = float(clean.mean())
+    # energy: within 15 % of the clean image after the average has filled, for every frame
+    assert np.all(np.abs(means[20:] - truth) < 0.15 * truth), (means[20:].min(), means[20:].max(), truth)
+    # converged, not drifting: the error of the last 100 frames equals that of frames 100-200
+    assert errors[-100:].mean() < 1.15 * errors[100:200].mean()
+    assert errors[-100:].mean() < 0.5 * errors[0]
+    assert np.all(f.variance_estimate() >= 0.0)

@@ -318,6 +318,9 @@ def _battery() -> list[StressCase]:
         for label, (value, text) in values.items():
             cases.append(StressCase(f"guide-{channel}-{label}", "guide", f"5% of pixels with {channel} {text}",
                                     _guide(channel, value), channel=channel))
+    for channel in ("albedo", "normal", "position", "depth", "variance", "visibility", "motion"):
+        cases.append(StressCase(f"guide-{channel}-nan-all", "guide", f"every pixel's {channel} NaN (a channel the "
+                                "renderer could not make)", _guide(channel, np.nan, "all"), channel=channel))
     cases += [
         StressCase("guide-normal-zero", "guide", "5% of pixels with zero-length normals", _guide("normal", 0.0),
                    channel="normal"),
@@ -328,8 +331,12 @@ def _battery() -> list[StressCase]:
                    _guide("variance", -1.0), channel="variance"),
         StressCase("guide-motion-outside", "guide", "every motion vector (1e6, -1e6) pixels, far outside the image",
                    _guide("motion", (1e6, -1e6), "all"), channel="motion"),
+        StressCase("guide-variance-zero", "guide", "variance 0 everywhere (a renderer that claims no noise)",
+                   _guide("variance", 0.0, "all"), channel="variance"),
         StressCase("guide-object_id-minus-one", "guide", "object id -1 everywhere", _guide("object_id", -1, "all"),
                    channel="object_id"),
+        StressCase("guide-object_id-max", "guide", "object id 2**31 - 1 everywhere",
+                   _guide("object_id", np.iinfo(np.int32).max, "all"), channel="object_id"),
         StressCase("guide-spp-zero", "guide", "0 samples everywhere", _guide("spp", 0, "all"), channel="spp"),
         StressCase("guide-all-background", "guide", "every pixel background (zero normal/position/albedo, depth "
                    "inf, id -1) under a sky gradient", _each(_all_background)),

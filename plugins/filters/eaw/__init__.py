@@ -27,7 +27,7 @@ def register_filters():
             factory=make_filter,
             requires={"color", "normal", "position"},
             temporal=False,
-            convex=True,  # renormalised non-negative weights (tested: tests/test_builtin_stress.py)
+            convex=True,  # renormalised non-negative weights (checked by the stress battery)
             backends=("cpu", "cuda"),
             params=DECLARED,
             stage_timing=True,

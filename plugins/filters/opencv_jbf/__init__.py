@@ -71,7 +71,7 @@ def register_filters():
             version=f"1.0+opencv-{cv2.__version__}",
             factory=JointBilateral,
             requires={"color", "normal"},
-            convex=True,  # a normalised bilateral filter (tested: tests/test_builtin_stress.py)
+            convex=True,  # a normalised bilateral filter (checked by the stress battery)
             params=PARAMS,
             description="OpenCV ximgproc joint bilateral filter, 9x9, normal guide (peer)",
         )
