@@ -17,6 +17,8 @@ from harness import load_plugins
 from tests.conftest import ROOT
 
 SCENE = ROOT.parent / "shared" / "scenes" / "living-room"
+# the capture loads the living-room and renders it (tens of seconds)
+pytestmark = pytest.mark.slow
 
 
 def _load(path):
