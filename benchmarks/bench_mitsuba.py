@@ -162,7 +162,7 @@ def agree(args) -> None:
     print(f"{args.width}x{args.height}, {args.spp} spp, seed {args.seed}, mitsuba variant {both['mitsuba'].variant}; "
           "ratios mitsuba / pathtracer")
     for name in args.scenes:
-        scene = shared_scene(name)
+        scene = shared_scene(name, args.scene_root)
         if scene is None:
             continue
         channels = set(GBUFFER) | {"variance"}
@@ -314,7 +314,7 @@ def sequence(args) -> None:
     size = (args.width, args.height)
     channels = {"albedo", "normal", "depth", "position", "object_id", "motion", "emission", "variance"}
     for name in args.scenes:
-        scene = shared_scene(name)
+        scene = shared_scene(name, args.scene_root)
         if scene is None:
             continue
         scene = dataclasses.replace(scene, name=f"{name}-sequence", frame_count=min(scene.frame_count, args.frames),
@@ -354,8 +354,6 @@ def main() -> None:
     a.add_argument("--seed", type=int, default=1)
     s = sub.add_parser("speed")
     s.add_argument("--scenes", nargs="+", default=["classroom", "living-room", "sponza"])
-    s.add_argument("--scene-root", type=Path, default=SCENES,
-                   help="folder holding the scene folders (default ../shared/scenes beside the project)")
     s.add_argument("--bare", action="store_true",
                    help="scenes without the scene plugin (no PyVista needed): the mitsuba renderer alone")
     s.add_argument("--renderers", nargs="+", choices=["pathtracer", "mitsuba"], default=["pathtracer", "mitsuba"])
@@ -373,6 +371,9 @@ def main() -> None:
     q.add_argument("--height", type=int, default=180)
     q.add_argument("--export", type=Path, default=None)
     q.add_argument("--reference-spp", type=int, default=64)
+    for command in (a, s, q):
+        command.add_argument("--scene-root", type=Path, default=SCENES,
+                             help="folder holding the scene folders (default ../shared/scenes beside the project)")
     args = parser.parse_args()
     {"agree": agree, "speed": speed, "sequence": sequence}[args.what](args)
 
