@@ -319,9 +319,11 @@ def sequence(args) -> None:
             continue
         scene = dataclasses.replace(scene, name=f"{name}-sequence", frame_count=min(scene.frame_count, args.frames),
                                     resolution=size)
-        shapes = len(mitsuba.loaded(scene).engine.scene.shapes())
+        loaded = mitsuba.loaded(scene)
+        shapes = len(loaded.engine.scene.shapes())
         print(f"{scene.name}: {scene.frame_count} frames at {args.width}x{args.height}, variant {mitsuba.variant}, "
-              f"{shapes} shapes in the file, {len(scene.objects)} scene objects")
+              f"{shapes} shapes in the file, {len(scene.objects)} scene objects; {len(set(loaded.ids.values()))} "
+              f"distinct object ids for the {len(loaded.ids)} shapes, {loaded.unmatched} shapes without an object")
         for t in range(scene.frame_count):
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

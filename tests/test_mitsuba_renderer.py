@@ -350,3 +350,14 @@ def test_files_outside_the_scene_folder_are_refused(tmp_path, monkeypatch):
         assert "\n" not in str(err.value)
     monkeypatch.setenv("DENOISE_HARNESS_ALLOW_OUTSIDE_FILES", "1")
     assert MitsubaRenderer(variant="scalar").render(scene, 0)["color"].shape == (24, 32, 3)
+
+
+def test_every_shape_has_its_own_id_and_its_objects_index(box, scalar):
+    """Shapes map to the scene plugin's objects through its record (``params["shapes"]``): named
+    shapes to the object of that name, unnamed ones (the cube) to ``shape<k>``; all ids distinct."""
+    loaded = scalar.loaded(box)
+    assert len(set(loaded.ids.values())) == len(loaded.ids) == 8 and loaded.unmatched == 0
+    names = {obj.name: k for k, obj in enumerate(box.objects)}
+    for shape in ("floor", "ceiling", "back", "left", "right", "lamp", "panel"):
+        assert loaded.ids[shape] == names[shape]
+    assert loaded.ids["harness_shape_6"] == names["shape6"]

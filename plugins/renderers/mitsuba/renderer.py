@@ -39,6 +39,8 @@ class LoadedScene:
     ----------
     engine : JitEngine or ScalarEngine
     poser : Poser
+    ids : dict of str to int
+        The object id of each shape of the file (distinct: :func:`.shapes.object_ids`).
     unmatched : int
         Shapes of the file that match no harness object (they get ids after the objects').
     """
@@ -47,7 +49,7 @@ class LoadedScene:
         mi_scene, shape_ids = scenefile.load(mi, scenefile.scene_file(scene), scene.params.get("sunsky"))
         shapes = {s.id(): s for s in mi_scene.shapes()}
         matched = match_objects(shapes, shape_ids, scene.objects)
-        ids = object_ids(mi_scene.shapes(), matched, len(scene.objects))
+        self.ids = ids = object_ids(mi_scene.shapes(), matched, len(scene.objects))
         self.unmatched = sum(1 for sid in shapes if matched.get(sid, -1) < 0)
         self.poser = Poser(mi, mi_scene, matched, scene.objects)
         integrator = mi.load_dict({"type": "path", "max_depth": int(max_depth), "rr_depth": int(rr_depth)})
