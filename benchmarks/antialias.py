@@ -1,39 +1,34 @@
-"""Anti-aliasing benchmark: quality on the AA scenes, per-frame time, comparison pictures.
+"""Anti-aliasing benchmark: quality on the AA scenes, the network's cost by depth, comparison pictures.
 
 Calls the ``raster`` renderer, the AA filters and the harness's metric plugins (``ssim``,
 ``psnr``, ``flip``, ``temporal_error``) directly, in one process::
 
     python benchmarks/antialias.py quality  [--reference-spp 64] [--out FILE.json]
-    python benchmarks/antialias.py timing   [--resolutions 1280x720,1920x1080] [--frames 6]
     python benchmarks/antialias.py depth    [--resolution 1280x720] [--layers 1,2,4,6]
     python benchmarks/antialias.py pictures [--scene aa-fence] [--frame 20] [--out-dir docs/images]
+
+The AA filters' time per frame is ``denoise-bench bench noaa,fxaa,taa,aa_rnn --task antialias
+--scene aa-fence --peers '' --no-error --rounds 5 --resolution 1280x720,1920x1080``.
 
 ``quality`` renders every scene of the ``antialias`` task (jittered input, SSAA references;
 renders are kept in ``datasets/cache/antialias/``), runs each filter configuration over each whole
 sequence from a camera cut, and prints per-scene and mean scores as Markdown tables, with a
 ghosting measure: the error in the pixels that showed a moving object during the last 4 frames
-but show something else now (where a trail would be). ``timing`` renders a few frames of
-``aa-fence`` at each resolution and times every filter on them, the filters alternating frame
-by frame; each filter's first call (compilation, warm-up) is reported apart. ``depth`` times the
-network's step at each depth (random weights: the cost does not depend on their values).
+but show something else now (where a trail would be). ``depth`` times the network's step at
+each depth (random weights: the cost does not depend on their values), the depths taking turns
+call by call (:func:`harness.timer.alternate`).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
-import os
-import platform
-import time
 from pathlib import Path
 
 import numpy as np
+from common import ROOT, alternate, integer, integers, parser, resolution, run, spread, timed_call
 
-os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+from harness import encode_srgb, load_plugins, write_png
 
-from harness import encode_srgb, load_plugins, write_png  # noqa: E402
-
-ROOT = Path(__file__).resolve().parents[1]
 CACHE = ROOT / "datasets" / "cache" / "antialias"
 #: (label, filter, parameters) of every configuration compared
 CONFIGS = [
@@ -119,11 +114,10 @@ def quality(args) -> dict:
     scenes = sorted(n for n, s in registry.scenes.items() if "antialias" in s.tasks and s.suite)
     results = {}
     for name in scenes:
-        t0 = time.perf_counter()
-        scene, frames, refs = render_scene(registry, name, GBUFFER, args.reference_spp)
+        (scene, frames, refs), ms, _ = timed_call(lambda n=name: render_scene(registry, n, GBUFFER, args.reference_spp))
         masks = trail_masks(scene, frames)
         print(f"{name}: {len(frames)} frames {frames[0].width}x{frames[0].height}, rendered/read in "
-              f"{time.perf_counter() - t0:.0f} s", flush=True)
+              f"{ms / 1e3:.0f} s", flush=True)
         results[name] = {}
         for label, fname, params in configs:
             outs = run_filter(registry, fname, params, frames)
@@ -159,48 +153,6 @@ def _quality_tables(results, labels, spp) -> None:
               f"{mean['ghost']:.4f} |")
 
 
-def timing(args) -> dict:
-    import numba
-
-    registry = load_plugins()
-    configs = _configs(registry, args.filters)
-    out = {"threads": numba.get_num_threads(), "machine": _machine(), "resolutions": {}}
-    for res in args.resolutions.split(","):
-        w, h = (int(v) for v in res.split("x"))
-        scene = registry.get("scene", args.scene).factory()
-        raster = registry.get("renderer", "raster").factory(jitter=True)
-        frames = [raster.render(scene, t, channels=GBUFFER, resolution=(w, h))
-                  for t in range(args.frames)]
-        filters = {label: registry.get("filter", fname).factory(backend="cpu", **params)
-                   for label, fname, params in configs}
-        wall = {label: [] for label in filters}
-        cpu = {label: [] for label in filters}
-        first = {}
-        for t, frame in enumerate(frames):
-            order = list(filters) if t % 2 == 0 else list(filters)[::-1]  # alternate the order
-            for label in order:
-                c0, w0 = time.process_time_ns(), time.perf_counter_ns()
-                filters[label](frame)
-                w1, c1 = time.perf_counter_ns(), time.process_time_ns()
-                if t == 0:
-                    first[label] = (w1 - w0) / 1e6
-                else:
-                    wall[label].append((w1 - w0) / 1e6)
-                    cpu[label].append((c1 - c0) / 1e6)
-        table = {label: {"median_ms": float(np.median(wall[label])), "min_ms": float(np.min(wall[label])),
-                         "max_ms": float(np.max(wall[label])), "cpu_ms": float(np.median(cpu[label])),
-                         "first_call_ms": first[label]} for label in filters}
-        out["resolutions"][res] = table
-        print(f"\n{res}, scene {args.scene}, {args.frames - 1} timed frames per filter (alternating), "
-              f"{out['threads']} threads\n")
-        print("| filter | ms median (min-max) | CPU ms median | first call ms |")
-        print("|---|---|---|---|")
-        for label, row in table.items():
-            print(f"| {label} | {row['median_ms']:.1f} ({row['min_ms']:.1f}-{row['max_ms']:.1f}) | "
-                  f"{row['cpu_ms']:.1f} | {row['first_call_ms']:.0f} |", flush=True)
-    return out
-
-
 def depth(args) -> dict:
     """Per-frame time of the ``aa_rnn`` step against its depth, in one process, depths alternating.
 
@@ -212,7 +164,7 @@ def depth(args) -> dict:
 
     from plugins.filters.aa_rnn.network import AARNN, prepare
 
-    w, h = (int(v) for v in args.resolution.split("x"))
+    w, h = args.resolution
     torch.manual_seed(0)
     torch.set_num_threads(numba.get_num_threads())
     rng = np.random.default_rng(0)
@@ -229,28 +181,21 @@ def depth(args) -> dict:
         model.memory_format = torch.channels_last
         models[layers] = model
     state = {layers: None for layers in models}
-    wall = {layers: [] for layers in models}
-    cpu = {layers: [] for layers in models}
-    with torch.inference_mode():
-        for t in range(args.frames):
-            order = list(models) if t % 2 == 0 else list(models)[::-1]
-            for layers in order:
-                c0, w0 = time.process_time_ns(), time.perf_counter_ns()
-                state[layers] = models[layers].step(inputs, state[layers])
-                w1, c1 = time.perf_counter_ns(), time.process_time_ns()
-                if t:  # the first step (allocation, warm-up) is not counted
-                    wall[layers].append((w1 - w0) / 1e6)
-                    cpu[layers].append((c1 - c0) / 1e6)
-    table = {layers: {"median_ms": float(np.median(wall[layers])), "min_ms": float(np.min(wall[layers])),
-                      "max_ms": float(np.max(wall[layers])), "cpu_ms": float(np.median(cpu[layers]))}
-             for layers in models}
+
+    def step(layers):
+        state[layers] = models[layers].step(inputs, state[layers])
+
+    with torch.inference_mode():  # the first step (allocation, warm-up) is not counted
+        result = alternate({layers: (lambda k=layers: step(k)) for layers in models}, args.frames - 1)
+    table = {layers: {"median_ms": float(np.median(ms)), "min_ms": float(np.min(ms)), "max_ms": float(np.max(ms)),
+                      "cpu_ms": float(np.median(result.cpu_ms[layers]))} for layers, ms in result.ms.items()}
     print(f"\naa_rnn step at {w}x{h}, {args.frames - 1} timed frames per depth (alternating), "
           f"{torch.get_num_threads()} threads\n")
-    print("| hidden layers | ms median (min-max) | CPU ms median |")
+    print("| hidden layers | ms median [min-max] | CPU ms median [min-max] |")
     print("|---|---|---|")
-    for layers, row in table.items():
-        print(f"| {layers} | {row['median_ms']:.1f} ({row['min_ms']:.1f}-{row['max_ms']:.1f}) | {row['cpu_ms']:.1f} |")
-    return {"resolution": args.resolution, "threads": torch.get_num_threads(), "machine": _machine(),
+    for layers in models:
+        print(f"| {layers} | {spread(result.ms[layers])} | {spread(result.cpu_ms[layers])} |")
+    return {"resolution": f"{w}x{h}", "threads": torch.get_num_threads(), "machine": _machine(),
             "layers": {str(k): v for k, v in table.items()}}
 
 
@@ -277,48 +222,39 @@ def pictures(args) -> dict:
 
 
 def _machine() -> dict:
-    cpu = platform.processor()
-    try:
-        with open("/proc/cpuinfo") as fh:
-            cpu = next((line.split(":", 1)[1].strip() for line in fh if line.startswith("model name")), cpu)
-    except OSError:
-        pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "python": platform.python_version()}
+    from harness.bench import bench_environment
+
+    return bench_environment()
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True)
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    sub = ap.add_subparsers(dest="command", required=True)
     q = sub.add_parser("quality")
-    q.add_argument("--reference-spp", type=int, default=64)
+    q.add_argument("--reference-spp", type=integer(1), default=64)
     q.add_argument("--filters", type=lambda s: s.split(";"), default=None, help="CONFIGS labels, ;-separated")
     q.add_argument("--out", default=None)
-    t = sub.add_parser("timing")
-    t.add_argument("--resolutions", default="1280x720,1920x1080")
-    t.add_argument("--frames", type=int, default=6)
-    t.add_argument("--scene", default="aa-fence")
-    t.add_argument("--filters", type=lambda s: s.split(";"), default=None, help="labels of CONFIGS, ';'-separated")
-    t.add_argument("--out", default=None)
     d = sub.add_parser("depth")
-    d.add_argument("--resolution", default="1280x720")
-    d.add_argument("--layers", type=lambda s: [int(v) for v in s.split(",")], default=[1, 2, 4, 6])
-    d.add_argument("--frames", type=int, default=8)
+    d.add_argument("--resolution", type=resolution, default=(1280, 720))
+    d.add_argument("--layers", type=integers(1), default=[1, 2, 4, 6])
+    d.add_argument("--frames", type=integer(2), default=8)
     d.add_argument("--out", default=None)
     p = sub.add_parser("pictures")
     p.add_argument("--scene", default="aa-fence")
-    p.add_argument("--frame", type=int, default=20)
+    p.add_argument("--frame", type=integer(0), default=20)
     p.add_argument("--network", default="aa_rnn")
-    p.add_argument("--reference-spp", type=int, default=64)
+    p.add_argument("--reference-spp", type=integer(1), default=64)
     p.add_argument("--edge", default="60,150,40", help="y,x,size of the edge crop")
     p.add_argument("--texture", default="20,60,40", help="y,x,size of the texture crop")
-    p.add_argument("--zoom", type=int, default=4)
+    p.add_argument("--zoom", type=integer(1), default=4)
     p.add_argument("--out-dir", default=str(ROOT / "docs" / "images"))
     p.add_argument("--out", default=None)
-    args = parser.parse_args(argv)
-    result = {"quality": quality, "timing": timing, "depth": depth, "pictures": pictures}[args.command](args)
+    args = ap.parse_args(argv)
+    result = {"quality": quality, "depth": depth, "pictures": pictures}[args.command](args)
     if getattr(args, "out", None):
         Path(args.out).write_text(json.dumps(result, indent=1))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

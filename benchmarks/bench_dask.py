@@ -29,53 +29,43 @@ Figures, machine and reading: docs/cluster.md ("Throughput and overhead").
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
-import resource
 import statistics
 import time
 
 import numpy as np
-
-
-def cpu_seconds() -> float:
-    """CPU time of this process (user + system)."""
-    use = resource.getrusage(resource.RUSAGE_SELF)
-    return use.ru_utime + use.ru_stime
-
-
-def parse_resolution(text: str) -> tuple[int, int]:
-    w, h = text.lower().split("x")
-    return int(w), int(h)
+from common import integer, parser, resolution, run, timed_call
 
 
 def render(store, renders, scene, spp, chunk, client=None):
-    """(wall s, CPU s of client and workers, reference) of one reference, here or on a cluster."""
-    workers_before = sum(client.run(cpu_seconds).values()) if client is not None else 0.0
-    cpu0, start = cpu_seconds(), time.perf_counter()
+    """(wall s, CPU s of client and workers, reference) of one reference, here or on a cluster.
+
+    The wall and the client's CPU time are :func:`harness.timer.timed_call`'s; the workers' CPU
+    time is each worker process's ``time.process_time`` before and after.
+    """
+    workers_before = sum(client.run(time.process_time).values()) if client is not None else 0.0
     if renders is None:
-        ref = store.reference(scene, "pathtracer", 0, spp=spp, chunk=chunk)
+        ref, wall_ms, cpu_ms = timed_call(lambda: store.reference(scene, "pathtracer", 0, spp=spp, chunk=chunk))
     else:
-        ref = renders.reference(scene, "pathtracer", 0, spp=spp).result()
-    wall = time.perf_counter() - start
-    cpu = cpu_seconds() - cpu0
+        ref, wall_ms, cpu_ms = timed_call(lambda: renders.reference(scene, "pathtracer", 0, spp=spp).result())
+    cpu = cpu_ms / 1e3
     if client is not None:
-        cpu += sum(client.run(cpu_seconds).values()) - workers_before
-    return wall, cpu, ref
+        cpu += sum(client.run(time.process_time).values()) - workers_before
+    return wall_ms / 1e3, cpu, ref
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scene", default="cornell")
-    parser.add_argument("--resolution", type=parse_resolution, default=(128, 128))
-    parser.add_argument("--spp", type=int, default=128)
-    parser.add_argument("--chunk", type=int, default=16, help="samples per task in the throughput runs")
-    parser.add_argument("--small-chunk", type=int, default=2, help="samples per task in the overhead run")
-    parser.add_argument("--rounds", type=int, default=3)
-    parser.add_argument("--project", type=parse_resolution, default=(1280, 720), metavar="WxH")
-    parser.add_argument("--project-spp", type=int, default=4096)
-    args = parser.parse_args()
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--scene", default="cornell")
+    ap.add_argument("--resolution", type=resolution, default=(128, 128))
+    ap.add_argument("--spp", type=integer(1), default=128)
+    ap.add_argument("--chunk", type=integer(1), default=16, help="samples per task in the throughput runs")
+    ap.add_argument("--small-chunk", type=integer(1), default=2, help="samples per task in the overhead run")
+    ap.add_argument("--rounds", type=integer(1), default=3)
+    ap.add_argument("--project", type=resolution, default=(1280, 720), metavar="WxH")
+    ap.add_argument("--project-spp", type=integer(1), default=4096)
+    args = ap.parse_args(argv)
 
     import numba
 
@@ -141,9 +131,7 @@ def main() -> None:
         trips = []
         for _ in range(20):
             with RemoteRenders(tiny, one, chunk=1) as renders:
-                start = time.perf_counter()
-                renders.reference(scene, "pathtracer", 0, spp=1).result()
-                trips.append(time.perf_counter() - start)
+                trips.append(timed_call(lambda: renders.reference(scene, "pathtracer", 0, spp=1).result())[1] / 1e3)
         overhead = max(statistics.median(extra), statistics.median(trips))
         print(f"\nper-task overhead at {args.resolution[0]}x{args.resolution[1]} ({tasks} tasks of "
               f"{args.small_chunk} spp, 1 worker): median {statistics.median(extra) * 1e3:.1f} ms "
@@ -175,7 +163,8 @@ def main() -> None:
     finally:
         for executor in clusters.values():
             executor.close()
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -2,9 +2,9 @@
 
 Times the five à-trous passes alone (the filter's inner part) on one ``synthetic-edges`` frame
 (sky on top) for several row strides of the padded planes, and with / without skipping the
-pixels that have nothing to filter. Variants are interleaved round by round, so that a change
-of machine load hits all of them alike; the table gives min and median of wall-clock ms per
-frame and of process CPU ms (both threads together).
+pixels that have nothing to filter. Variants take turns call by call
+(:func:`harness.timer.alternate`), so that a change of machine load hits all of them alike; the
+table gives median [min-max] of wall-clock ms per frame and of process CPU ms (all threads).
 
 ``--per-pass`` also prints, for the default stride with skipping, the median wall-clock ms of
 each pass (hole spacing 1, 2, 4, ...; the last one also writes the output frame).
@@ -12,14 +12,15 @@ each pass (hole spacing 1, 2, 4, ...; the last one also writes the output frame)
 Usage::
 
     python benchmarks/bench_eaw_layout.py [--resolution 1280x720] [--rounds 7] [--per-pass]
+
+The whole filter against its peers, floors and earlier revisions is ``denoise-bench bench eaw
+--rounds N [--baseline REV]``.
 """
 
 from __future__ import annotations
 
-import argparse
-import time
-
 import numpy as np
+from common import alternate, integer, parser, resolution, run, time_table, timed_call
 from numba import get_num_threads
 
 from harness import load_plugins
@@ -39,13 +40,13 @@ def prepare(frame, params, stride, skip):
     return buf, buf.state
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--resolution", default="1280x720")
-    ap.add_argument("--rounds", type=int, default=7)
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--resolution", type=resolution, default=(1280, 720))
+    ap.add_argument("--rounds", type=integer(1), default=7)
     ap.add_argument("--per-pass", action="store_true", help="also time each pass of the default variant")
-    args = ap.parse_args()
-    w, h = (int(v) for v in args.resolution.split("x"))
+    args = ap.parse_args(argv)
+    w, h = args.resolution
     reg = load_plugins()
     renderer = reg.renderers["synthetic"].factory()
     scene = reg.scenes["synthetic-edges"].factory()
@@ -63,24 +64,15 @@ def main() -> None:
     }
     prepared = {name: prepare(frame, params, *v) for name, v in variants.items()}
     color = frame["color"]
-    for buf, _ in prepared.values():
-        cpu.iterate(buf, coefficients, taps, color, 1.0)  # compile / warm up
-    wall = {name: [] for name in variants}
-    proc = {name: [] for name in variants}
-    for _ in range(args.rounds):
-        for name, (buf, _) in prepared.items():
-            t0, c0 = time.perf_counter(), time.process_time()
-            cpu.iterate(buf, coefficients, taps, color, 1.0)
-            wall[name].append((time.perf_counter() - t0) * 1e3)
-            proc[name].append((time.process_time() - c0) * 1e3)
+    calls = {name: (lambda buf=buf: cpu.iterate(buf, coefficients, taps, color, 1.0))
+             for name, (buf, _) in prepared.items()}
+    result = alternate(calls, args.rounds)
     active = np.mean(prepared[next(iter(prepared))][1] == layout.ACTIVE)
     print(f"{w}x{h}, {params.iterations} passes, {get_num_threads()} threads, active pixels {active:.1%}")
-    print(f"{'variant':48s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
-    for name in variants:
-        print(f"{name:48s} {min(wall[name]):9.1f} {np.median(wall[name]):9.1f} "
-              f"{min(proc[name]):9.1f} {np.median(proc[name]):9.1f}")
+    print(time_table(result, width=48))
     if args.per_pass:
         per_pass(prepared[next(iter(prepared))][0], coefficients, taps, color, args.rounds)
+    return 0
 
 
 def per_pass(buf, coefficients, taps, color, rounds: int) -> None:
@@ -89,9 +81,8 @@ def per_pass(buf, coefficients, taps, color, rounds: int) -> None:
     times: dict[int, list] = {}
 
     def timed(*args):
-        t0 = time.perf_counter()
-        kernel(*args)
-        times.setdefault(args[9], []).append((time.perf_counter() - t0) * 1e3)  # args[9]: the hole spacing
+        _, ms, _ = timed_call(lambda: kernel(*args))
+        times.setdefault(args[9], []).append(ms)  # args[9]: the hole spacing
 
     cpu.atrous_pass = timed
     try:
@@ -104,4 +95,4 @@ def per_pass(buf, coefficients, taps, color, rounds: int) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

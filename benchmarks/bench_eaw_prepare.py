@@ -4,12 +4,14 @@ git revision's, in one process, alternating.
 One ``synthetic-moving`` frame (the channels ``eaw`` reads: colour, normal, position) is
 surveyed and packed by the current :mod:`plugins.filters.eaw.layout` and by the one at git
 revision ``--baseline`` (the whole ``eaw`` package of that revision, extracted to a temporary
-folder and imported from there), the two taking turns round by round, each pass timed in
-process CPU time (all threads together) and wall-clock time; also ``layout.unpack`` (the CUDA
+folder and imported from there: :mod:`harness.bench_baseline`), the passes taking turns call by
+call (:func:`harness.timer.alternate`), each timed in process CPU time (all threads together)
+and wall-clock time; also ``layout.unpack`` (the CUDA
 backend's last step, on the host). Before timing, the script checks that both give the same
 pixel classes, row sums, planes, runs and unpacked frame, and prints the largest difference of
-the colour scale. The memory floor of the filter (read colour, normal, position,
-write one frame) is timed in the same rounds.
+the colour scale. The memory floor of the filter (:class:`harness.floor.Floor`: read colour,
+normal, position, write one frame) is timed in the same rounds. The whole filter against a
+revision is ``denoise-bench bench eaw --rounds N --baseline REV``.
 
 Usage::
 
@@ -19,22 +21,27 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import importlib
-import time
 
 import numpy as np
-from bench_eaw_svgf import baseline_package, floor_eaw
-from numba import get_num_threads, set_num_threads
+from common import (
+    alternate,
+    baseline_package,
+    integer,
+    parser,
+    ratio_line,
+    resolution,
+    run,
+    thread_counts,
+    time_table,
+    using_threads,
+)
+from numba import get_num_threads
 
 from harness import load_plugins
+from harness.floor import Floor
 from plugins.filters.eaw import layout
 from plugins.filters.eaw.params import EAWParams
-
-
-def baseline_layout(ref: str):
-    """The ``layout`` module of the ``eaw`` package at git revision ``ref``."""
-    return importlib.import_module(baseline_package(ref, "eaw") + ".layout")
 
 
 class Preparer:
@@ -91,67 +98,52 @@ def compare(old: Preparer, new: Preparer) -> None:
         print(f"  row_log: largest relative difference {rel.max():.1e}")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--resolution", default="1280x720")
-    ap.add_argument("--threads", default="", help="comma-separated thread counts (default: all)")
-    ap.add_argument("--rounds", type=int, default=21)
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--resolution", type=resolution, default=(1280, 720))
+    ap.add_argument("--threads", type=thread_counts, default=None, help="comma-separated thread counts (default: all)")
+    ap.add_argument("--rounds", type=integer(1), default=21)
     ap.add_argument("--scene", default="synthetic-moving")
     ap.add_argument("--baseline", default="main", help="git revision whose layout is timed too")
-    args = ap.parse_args()
-    w, h = (int(v) for v in args.resolution.split("x"))
+    args = ap.parse_args(argv)
+    w, h = args.resolution
     reg = load_plugins()
     frame = reg.renderers["synthetic"].factory().render(
         reg.scenes[args.scene].factory(), 1, spp=1, seed=0, channels=frozenset({"color", "normal", "position"}),
         resolution=(w, h))
     params = EAWParams()
-    old = Preparer(baseline_layout(args.baseline), frame, params)
-    new = Preparer(layout, frame, params)
-    out = np.empty_like(old.color)
-    for p in (old, new):  # compile, warm up
-        p.survey()
-        p.scale()
-        p.pack()
-        p.unpack()
-    compare(old, new)
-    same = np.array_equal(old.out.view(np.uint32), new.out.view(np.uint32))
-    print(f"unpack: bit-identical {'yes' if same else 'NO'}")
-    active = np.mean(new.b.state == layout.ACTIVE)
-    passes = {"survey@base": old.survey, "survey": new.survey, "pack@base": old.pack, "pack": new.pack,
-              "unpack@base": old.unpack, "unpack": new.unpack,
-              "floor": lambda: floor_eaw(old.color, old.normal, old.position, out)}
-    threads = [int(t) for t in args.threads.split(",") if t] or [get_num_threads()]
-    for n in threads:
-        set_num_threads(n)
-        for f in passes.values():
-            f()
-        wall = {k: [] for k in passes}
-        cpu = {k: [] for k in passes}
-        order = list(passes)
-        for r in range(args.rounds):
-            for name in order[r % len(order):] + order[:r % len(order)]:
-                t0, c0 = time.perf_counter(), time.process_time()
-                passes[name]()
-                wall[name].append((time.perf_counter() - t0) * 1e3)
-                cpu[name].append((time.process_time() - c0) * 1e3)
-        print(f"\n{w}x{h}, {args.scene} (active {active:.1%}), {n} thread(s), {args.rounds} rounds, "
-              f"baseline {args.baseline}; ms per pass")
-        print(f"{'pass':12s} {'wall min':>9s} {'wall med':>9s} {'cpu min':>9s} {'cpu med':>9s}")
-        for name in passes:
-            print(f"{name:12s} {min(wall[name]):9.2f} {np.median(wall[name]):9.2f} {min(cpu[name]):9.2f} "
-                  f"{np.median(cpu[name]):9.2f}")
-        for stage in ("survey", "pack", "unpack"):
-            for label, t in (("wall", wall), ("cpu", cpu)):
-                ratio = np.array(t[f"{stage}@base"]) / np.array(t[stage])
-                print(f"  {stage}@base / {stage} ({label}, per round): median {np.median(ratio):.2f}, "
-                      f"range {ratio.min():.2f}-{ratio.max():.2f}")
-        for label, t in (("wall", wall), ("cpu", cpu)):
-            ratio = ((np.array(t["survey@base"]) + np.array(t["pack@base"]))
-                     / (np.array(t["survey"]) + np.array(t["pack"])))
-            both = np.array(t["survey"]) + np.array(t["pack"])
-            print(f"  survey + pack ({label}): now median {np.median(both):.2f} ms, before / now per round "
-                  f"median {np.median(ratio):.2f}, range {ratio.min():.2f}-{ratio.max():.2f}")
+    with baseline_package(args.baseline, "plugins/filters/eaw") as package:
+        old = Preparer(importlib.import_module(package.__name__ + ".layout"), frame, params)
+        new = Preparer(layout, frame, params)
+        for p in (old, new):  # compile, warm up
+            p.survey()
+            p.scale()
+            p.pack()
+            p.unpack()
+        compare(old, new)
+        same = np.array_equal(old.out.view(np.uint32), new.out.view(np.uint32))
+        print(f"unpack: bit-identical {'yes' if same else 'NO'}")
+        active = np.mean(new.b.state == layout.ACTIVE)
+        floor = Floor({"normal", "position"})
+        passes = {"survey@base": old.survey, "survey": new.survey, "pack@base": old.pack, "pack": new.pack,
+                  "unpack@base": old.unpack, "unpack": new.unpack, "floor": lambda: floor(frame)}
+        for n in args.threads or [get_num_threads()]:
+            with using_threads(n):
+                result = alternate(passes, args.rounds)
+            print(f"\n{w}x{h}, {args.scene} (active {active:.1%}), {n} thread(s), {args.rounds} rounds, "
+                  f"baseline {args.baseline}; ms per pass")
+            print(time_table(result, width=12, digits=2))
+            for stage in ("survey", "pack", "unpack"):
+                for clock in ("wall", "cpu"):
+                    print("  " + ratio_line(result, f"{stage}@base", stage, clock))
+            for clock in ("wall", "cpu"):
+                times = result.ms if clock == "wall" else result.cpu_ms
+                both = np.add(times["survey"], times["pack"])
+                ratio = np.add(times["survey@base"], times["pack@base"]) / both
+                print(f"  survey + pack ({clock}): now median {np.median(both):.2f} ms, before / now per round "
+                      f"median {np.median(ratio):.2f}, range {ratio.min():.2f}-{ratio.max():.2f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

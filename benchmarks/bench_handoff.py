@@ -19,9 +19,10 @@ docs/architecture.md ("The worker hand-off").
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import time
+
+from common import integer, parser, run, timed_call
+from common import resolution as size_type
 
 from harness import load_plugins
 from harness.cache import Cache, make_key
@@ -52,33 +53,33 @@ def tasks_for(name, resolution, frames, repeats, inputs, count, key):
 
 
 def timed_run(executor, tasks):
-    start = time.perf_counter()
-    outcomes = [o for _, o in executor.run(tasks)]
-    assert all(o.ok for o in outcomes), [o.error for o in outcomes if not o.ok]
-    return time.perf_counter() - start, outcomes
+    """(wall seconds, outcomes) of running ``tasks``; every one must succeed."""
+    outcomes, ms, _ = timed_call(lambda: [o for _, o in executor.run(tasks)])
+    if not all(o.ok for o in outcomes):
+        raise RuntimeError(f"a task failed: {[o.error for o in outcomes if not o.ok]}")
+    return ms / 1e3, outcomes
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--resolution", default="1280x720")
-    parser.add_argument("--frames", type=int, default=4)
-    parser.add_argument("--jobs", type=int, default=10)
-    parser.add_argument("--filter", default="eaw")
-    parser.add_argument("--rounds", type=int, default=3)
-    args = parser.parse_args()
-    resolution = tuple(int(v) for v in args.resolution.split("x"))
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--resolution", type=size_type, default=(1280, 720))
+    ap.add_argument("--frames", type=integer(1), default=4)
+    ap.add_argument("--jobs", type=integer(1), default=10)
+    ap.add_argument("--filter", default="eaw")
+    ap.add_argument("--rounds", type=integer(1), default=3)
+    args = ap.parse_args(argv)
+    resolution = args.resolution
     reg = load_plugins()
     channels = frozenset(reg.filters[args.filter].requires | {"normal", "position"})
     inputs = group_inputs(reg, resolution, args.frames, channels)
     megabytes = sum(a.nbytes for f in inputs.frames for a in f.arrays().values()) / 1e6
     megabytes += sum(r.nbytes for r in inputs.references) / 1e6
-    print(f"{cpu_model()}; {args.resolution}, {args.frames} frames, {megabytes:.0f} MB of inputs per group")
+    print(f"{cpu_model()}; {resolution[0]}x{resolution[1]}, {args.frames} frames, {megabytes:.0f} MB of inputs "
+          "per group")
 
     inline = InlineExecutor(reg)
-    start = time.perf_counter()
     local = LocalExecutor(plugins=PluginOptions(), timeout=600)
-    local._start()
-    print(f"worker start-up: {time.perf_counter() - start:.2f} s")
+    print(f"worker start-up: {timed_call(local._start)[1] / 1e3:.2f} s")
 
     trivial = []
     for r in range(args.rounds):
@@ -107,7 +108,8 @@ def main() -> None:
     for name, values in ms.items():
         print(f"{args.filter} ms per frame, {name:6s}: " + ", ".join(f"{v:.1f}" for v in values))
     local.close()
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

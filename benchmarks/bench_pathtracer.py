@@ -4,15 +4,18 @@ Usage::
 
     python benchmarks/bench_pathtracer.py [--width 1280] [--height 720] [--spp 1] [--max-depth 5]
                                           [--repeats 3] [--scenes atrium classroom] [--no-mitsuba]
-                                          [--baseline FOLDER]
+                                          [--baseline REV]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
-                                          [--mitsuba-spp N] [--baseline FOLDER]
+                                          [--mitsuba-spp N] [--baseline REV]
     python benchmarks/bench_pathtracer.py --threads 1 2 --no-mitsuba [--scenes classroom]
 
-``--baseline FOLDER``: FOLDER is a copy of the project at an earlier commit (``git archive REV |
-tar -x -C FOLDER``); its path tracer renders the scene as its own Mitsuba loader loads it, and its
-frames are timed too, alternating with ours and Mitsuba's frame by frame in this one process, so
-all three see the same machine load.
+``--baseline REV``: the path tracer and the Mitsuba loader as they were at git revision REV
+(extracted to a temporary folder and imported beside the current ones: ``benchmarks/common.py``);
+the earlier path tracer renders the scene as its own loader loads it, and its frames are timed
+too, alternating with ours and Mitsuba's frame by frame in this one process, so all three see the
+same machine load; the ratio ours / baseline is printed per frame pair (wall and CPU time; with
+``NUMBA_NUM_THREADS=1`` and ``--no-mitsuba`` this isolates the path kernel from thread scheduling
+on a shared machine).
 
 ``--threads N [N ...]``: our path tracer's frames with each of these Numba thread counts
 (``numba.set_num_threads``), alternating frame by frame in this one process, labelled
@@ -25,12 +28,13 @@ ratio of the whole image. Mitsuba 3 gets ``diffuse`` for ``roughdiffuse`` and th
 ``roughplastic`` for ``phong`` (Mitsuba 3 has neither), so that the ratios measure the materials;
 a ``sun``/``sky``/``sunsky`` emitter becomes Mitsuba 3's own ``sunsky`` with the parameters that
 the harness's loader read (``Scene.params["sunsky"]``: Mitsuba 3's semantics, see
-``plugins/scenes/mitsuba/sun_sky.py``). With ``--baseline FOLDER`` the earlier copy's loader and
+``plugins/scenes/mitsuba/sun_sky.py``). With ``--baseline REV`` the earlier revision's loader and
 path tracer render each scene too, and their ratios to the same Mitsuba 3 image are printed.
 
 For each scene: paths per second and milliseconds per ``spp``-sample frame (median of
-``repeats`` timed frames after one warm-up frame; wall clock, ``time.perf_counter_ns``, plus the
-process CPU time, which is steadier on a shared machine). A timed frame is a complete render:
+``repeats`` timed frames after one warm-up frame, the renderers taking turns frame by frame,
+:func:`harness.timer.alternate`; wall clock plus the process CPU time, which is steadier on a
+shared machine). A timed frame is a complete render:
 primary rays, first hits and the path samples (the BVH is built once per scene, during the
 warm-up, as Mitsuba builds its own when loading). Then, in the same process, Mitsuba 3
 (``scalar_rgb`` variant, ``path`` integrator, same resolution, spp, ``max_depth`` and Russian
@@ -41,38 +45,22 @@ is found next to the project root and the benchmark skips it, with a message, wh
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import re
 import statistics
 import tempfile
-import time
 import warnings
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 
 import numba
 import numpy as np
+from common import SHARED_SCENES, alternate, baseline_packages, integer, parser, run
 
 from harness import load_plugins
 
-ROOT = Path(__file__).resolve().parents[1]
-SCENES = ROOT.parent / "shared" / "scenes"
-
-
-def alternating(fns: dict, repeats: int) -> dict:
-    """Wall and CPU milliseconds of ``repeats`` calls of each function, after one warm-up call each;
-    the functions take turns, call by call."""
-    for fn in fns.values():
-        fn()
-    out = {name: {"wall": [], "cpu": []} for name in fns}
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            c0, t0 = time.process_time(), time.perf_counter_ns()
-            fn()
-            out[name]["wall"].append((time.perf_counter_ns() - t0) / 1e6)
-            out[name]["cpu"].append((time.process_time() - c0) * 1e3)
-    return out
+SCENES = SHARED_SCENES
 
 
 def harness_scene(registry, name: str):
@@ -99,24 +87,12 @@ def frame_of(renderer_class, scene, args, threads=None):
     return frame
 
 
-def _import_copy(folder: Path, name: str):
-    """The package in ``folder`` imported as ``name`` (its relative imports stay inside the copy)."""
-    import importlib.util
-    import sys
-
-    spec = importlib.util.spec_from_file_location(name, folder / "__init__.py",
-                                                  submodule_search_locations=[str(folder)])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-def baseline(root: Path):
-    """(``PathTracer`` class, Mitsuba ``load`` function) of an earlier copy of the project at ``root``."""
-    tracer = _import_copy(root / "plugins" / "renderers" / "pathtracer", "baseline_pathtracer")
-    loader = _import_copy(root / "plugins" / "scenes" / "mitsuba", "baseline_mitsuba")
-    return tracer.PathTracer, loader.load
+@contextmanager
+def baseline(rev: str):
+    """(``PathTracer`` class, Mitsuba ``load`` function, path tracer package) as they were at git
+    revision ``rev``."""
+    with baseline_packages(rev, ["plugins/renderers/pathtracer", "plugins/scenes/mitsuba"]) as (tracer, loader):
+        yield tracer.PathTracer, loader.load, tracer
 
 
 def _camel(name: str) -> str:
@@ -199,11 +175,11 @@ def region_means(image: np.ndarray, grid: int = 4) -> np.ndarray:
     return np.array([[image[np.ix_(r, c)].mean() for c in cols] for r in rows])
 
 
-def ratios(registry, args) -> None:
-    """Region-mean ratios harness / Mitsuba 3 of converged images (see the module docstring)."""
+def ratios(registry, args, old=None) -> None:
+    """Region-mean ratios harness / Mitsuba 3 of converged images (see the module docstring);
+    ``old``: :func:`baseline`'s (path tracer, loader) too."""
     from plugins.renderers.pathtracer import PathTracer
 
-    old = baseline(args.baseline.resolve()) if args.baseline is not None else None
     size = (args.width, args.height)
     print(f"{args.width}x{args.height}, {args.spp} spp (Mitsuba 3: {args.mitsuba_spp or args.spp}), max_depth "
           f"{args.max_depth}; 4x4 regions, harness / Mitsuba 3")
@@ -243,6 +219,14 @@ def report(rows: list[dict], args) -> None:
         print(f"{r['renderer']:<12} {r['scene']:<11} {spread:>22} {paths / wall / 1e3:>9.3f} {cpu:>9.1f} "
               f"{paths / cpu / 1e3:>13.3f}")
     for r in rows:
+        if r["renderer"] != "baseline":
+            continue
+        for mine in (x for x in rows if x["scene"] == r["scene"] and x["renderer"].startswith("pathtracer")):
+            for clock in ("wall", "cpu"):
+                per = np.asarray(mine[clock]) / np.asarray(r[clock])
+                print(f"{mine['renderer']} / baseline time per frame on {r['scene']} ({clock}, per frame pair): "
+                      f"median {np.median(per):.3f}, range {per.min():.3f}-{per.max():.3f}")
+    for r in rows:
         if r["renderer"] != "mitsuba3":
             continue
         for mine in (x for x in rows if x["scene"] == r["scene"] and x["renderer"] != "mitsuba3"):
@@ -255,33 +239,37 @@ def report(rows: list[dict], args) -> None:
                   f"{min(per_cpu):.2f}-{max(per_cpu):.2f})")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--width", type=int, default=1280)
-    parser.add_argument("--height", type=int, default=720)
-    parser.add_argument("--spp", type=int, default=1)
-    parser.add_argument("--max-depth", type=int, default=5)
-    parser.add_argument("--rr-depth", type=int, default=5)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--scenes", nargs="+", default=None)
-    parser.add_argument("--no-mitsuba", action="store_true")
-    parser.add_argument("--baseline", type=Path, default=None, help="folder with a copy of an earlier pathtracer")
-    parser.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
-    parser.add_argument("--mitsuba-spp", type=int, default=None,
-                        help="with --ratios: Mitsuba 3's samples per pixel (default --spp)")
-    parser.add_argument("--threads", type=int, nargs="+", default=None,
-                        help="time our path tracer with each of these Numba thread counts")
-    args = parser.parse_args()
-    if args.threads and not all(1 <= n <= numba.config.NUMBA_NUM_THREADS for n in args.threads):
-        parser.error(f"--threads must lie in 1..{numba.config.NUMBA_NUM_THREADS}")
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--width", type=integer(1), default=1280)
+    ap.add_argument("--height", type=integer(1), default=720)
+    ap.add_argument("--spp", type=integer(1), default=1)
+    ap.add_argument("--max-depth", type=integer(1), default=5)
+    ap.add_argument("--rr-depth", type=integer(1), default=5)
+    ap.add_argument("--repeats", type=integer(1), default=3)
+    ap.add_argument("--scenes", nargs="+", default=None)
+    ap.add_argument("--no-mitsuba", action="store_true")
+    ap.add_argument("--baseline", default=None, metavar="REV", help="git revision whose path tracer runs too")
+    ap.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
+    ap.add_argument("--mitsuba-spp", type=integer(1), default=None,
+                    help="with --ratios: Mitsuba 3's samples per pixel (default --spp)")
+    ap.add_argument("--threads", type=integer(1, numba.config.NUMBA_NUM_THREADS), nargs="+", default=None,
+                    help="time our path tracer with each of these Numba thread counts")
+    args = ap.parse_args(argv)
     registry = load_plugins()
-    if args.ratios:
-        args.scenes = args.scenes or ["classroom", "living-room", "sponza"]
-        ratios(registry, args)
-        return
+    with baseline(args.baseline) if args.baseline is not None else nullcontext() as old:
+        if args.ratios:
+            args.scenes = args.scenes or ["classroom", "living-room", "sponza"]
+            ratios(registry, args, old)
+        else:
+            report(timings(registry, args, old), args)
+    return 0
+
+
+def timings(registry, args, old) -> list[dict]:
+    """Every renderer's frames on every scene, taking turns frame by frame."""
     from plugins.renderers.pathtracer import PathTracer
 
-    old = baseline(args.baseline.resolve()) if args.baseline is not None else None
     rows = []
     for name in args.scenes or ["atrium", "classroom"]:
         scene = harness_scene(registry, name)
@@ -304,10 +292,11 @@ def main() -> None:
                 fns["pathtracer"] = frame_of(PathTracer, scene, args)
             if not args.no_mitsuba and (folder / "scene.xml").is_file():
                 fns["mitsuba3"] = mitsuba_frame(folder, scene, args, Path(tmp))
-            for label, times in alternating(fns, args.repeats).items():
-                rows.append({"renderer": label, "scene": name, **times})
-    report(rows, args)
+            result = alternate(fns, args.repeats)
+            for label in fns:
+                rows.append({"renderer": label, "scene": name, "wall": result.ms[label], "cpu": result.cpu_ms[label]})
+    return rows
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

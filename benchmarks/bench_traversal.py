@@ -3,31 +3,32 @@
 Usage::
 
     NUMBA_NUM_THREADS=1 python benchmarks/bench_traversal.py [--scene classroom] [--rays 200000]
-                                                             [--repeats 4] [--baseline FOLDER]
+                                                             [--repeats 4] [--baseline REV]
 
 Three ray sets from the first hits of the scene's camera at 1280x720 (pixels drawn at random):
 ``primary`` (the camera rays), ``bounce`` (from the first hit, offset as the integrator does, in a
 cosine-distributed direction around the geometric normal turned to the camera) and ``shadow``
 (any-hit queries from the same points, half towards the sun, half in random directions of the
 upper hemisphere, unbounded). Each set is traced in a single-threaded loop; the figure is rays
-per CPU-second (median and range of ``--repeats`` passes after one warm-up pass). Also printed:
+per CPU-second (median and range of ``--repeats`` passes after one warm-up pass, the versions
+and sets taking turns call by call: :func:`harness.timer.alternate`). Also printed:
 the same bounce rays when only 64 distinct rays are repeated (``resident``, the tree's paths then
 stay in cache), which bounds what memory latency costs.
 
-``--baseline FOLDER``: the traversal and BVH of an earlier copy of the project (``git archive REV
-| tar -x -C FOLDER``) on the same rays, alternating with ours pass by pass; the hit counts of the
-two must agree.
+``--baseline REV``: the traversal and BVH as they were at git revision REV (imported beside
+ours: ``benchmarks/common.py``) on the same rays, alternating with ours call by call; the hit
+counts of the two must agree.
 """
 
 from __future__ import annotations
 
-import argparse
+import importlib
 import statistics
-import time
-from pathlib import Path
+from contextlib import nullcontext
 
 import numpy as np
-from bench_pathtracer import SCENES, _import_copy, harness_scene
+from bench_pathtracer import SCENES, harness_scene
+from common import alternate, baseline_package, integer, parser, run
 from numba import njit
 
 from harness import load_plugins
@@ -85,20 +86,20 @@ def ray_sets(setup, n, seed=1):
     return np.ascontiguousarray(rays), tri
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="classroom")
-    parser.add_argument("--rays", type=int, default=200000)
-    parser.add_argument("--repeats", type=int, default=4)
-    parser.add_argument("--baseline", type=Path, default=None, help="folder with a copy of an earlier pathtracer")
-    args = parser.parse_args()
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--scene", default="classroom")
+    ap.add_argument("--rays", type=integer(64), default=200000)
+    ap.add_argument("--repeats", type=integer(1), default=4)
+    ap.add_argument("--baseline", default=None, metavar="REV", help="git revision whose traversal runs too")
+    args = ap.parse_args(argv)
     from plugins.renderers.pathtracer import PathTracer, bvh, traverse
 
     registry = load_plugins()
     scene = harness_scene(registry, args.scene)
     if scene is None:
         print(f"skipping {args.scene!r}: neither a registered scene nor a folder {SCENES / args.scene}")
-        return
+        return 0
     setup = PathTracer().setup(scene, 0, (1280, 720))
     data = setup.data
     rays, skip = ray_sets(setup, args.rays)
@@ -108,37 +109,33 @@ def main() -> None:
     sets = {"primary": (c(rays[0]), c(rays[1]), no_skip, False), "bounce": (c(rays[2]), c(rays[3]), skip, False),
             "shadow": (c(rays[2]), c(rays[4]), skip, True),
             "resident": (c(rays[2][resident]), c(rays[3][resident]), skip[resident], False)}
-    versions = {"pathtracer": (traverse, bvh)}
-    if args.baseline is not None:
-        old = _import_copy(args.baseline.resolve() / "plugins" / "renderers" / "pathtracer", "baseline_pathtracer")
-        import baseline_pathtracer.bvh as old_bvh
-        import baseline_pathtracer.traverse as old_traverse
-
-        versions = {"baseline": (old_traverse, old_bvh), **versions}
-        del old
-    verts = data.tri_v.reshape(-1, 3, 3)
-    prepared = {}
-    for name, (trav, tree) in versions.items():
-        bounds, child, count, order, depth = tree.build_bvh(verts)
-        nodes_f, nodes_i = tree.pack_wide(bounds, child, count)
-        prepared[name] = (kernels(trav), np.ascontiguousarray(verts[order].reshape(-1, 9)), nodes_f, nodes_i, depth)
-        print(f"{name}: {nodes_f.nbytes / 2**20:.2f} MiB of nodes, {depth} binary levels", flush=True)
-    rates = {}
-    for rep in range(args.repeats + 1):
-        for name, ((closest, anyhit), tri_v, nodes_f, nodes_i, depth) in prepared.items():
+    earlier = baseline_package(args.baseline, "plugins/renderers/pathtracer") if args.baseline else nullcontext()
+    with earlier as package:
+        versions = {"pathtracer": (traverse, bvh)}
+        if package is not None:
+            versions = {"baseline": tuple(importlib.import_module(f"{package.__name__}.{m}")
+                                          for m in ("traverse", "bvh")), **versions}
+        verts = data.tri_v.reshape(-1, 3, 3)
+        calls = {}
+        for name, (trav, tree) in versions.items():
+            bounds, child, count, order, depth = tree.build_bvh(verts)
+            nodes_f, nodes_i = tree.pack_wide(bounds, child, count)
+            closest, anyhit = kernels(trav)
+            tri_v = np.ascontiguousarray(verts[order].reshape(-1, 9))
+            print(f"{name}: {nodes_f.nbytes / 2**20:.2f} MiB of nodes, {depth} binary levels", flush=True)
             for label, (o, d, s, shadow) in sets.items():
                 fn = anyhit if shadow else closest
-                c0 = time.process_time()
-                hits = fn(o, d, s, tri_v, nodes_f, nodes_i, depth)
-                dt = time.process_time() - c0
-                if rep == 0:
-                    print(f"{name:<10} {label:<8} hits {hits}")
-                else:
-                    rates.setdefault((name, label), []).append(len(o) / max(dt, 1e-9) / 1e6)
+                tree_args = (tri_v, nodes_f, nodes_i, depth)
+                calls[(name, label)] = lambda fn=fn, o=o, d=d, s=s, t=tree_args: fn(o, d, s, *t)
+        for (name, label), call in calls.items():  # the warm-up pass: compilation, hit counts
+            print(f"{name:<10} {label:<8} hits {call()}")
+        result = alternate(calls, args.repeats, warm=False)
     print(f"\n{args.scene}, {args.rays} rays per set, M rays per CPU-second, median [min-max] of {args.repeats}")
-    for (name, label), v in rates.items():
+    for (name, label), cpu_ms in result.cpu_ms.items():
+        v = [len(sets[label][0]) / max(ms, 1e-6) / 1e3 for ms in cpu_ms]
         print(f"{name:<10} {label:<8} {statistics.median(v):6.2f} [{min(v):.2f}-{max(v):.2f}]")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

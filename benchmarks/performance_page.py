@@ -13,17 +13,18 @@ Run it on an otherwise idle machine; the load average at the start and end is pa
 
 from __future__ import annotations
 
-import argparse
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
+from common import ROOT, parser, run
+
 #: the bench of the page (arguments after ``denoise-bench bench``)
 COMMAND = ["eaw,svgf,sbf,lbf", "--peers", "opencv_jbf,oidn", "--scene", "synthetic-moving",
            "--resolution", "1280x720,1920x1080", "--threads", "1,2", "--repeats", "5"]
 START, END = "<!-- bench:start -->", "<!-- bench:end -->"
-PAGE = Path(__file__).resolve().parents[1] / "docs" / "performance.md"
+PAGE = ROOT / "docs" / "performance.md"
 
 
 def splice(page: str, block: str) -> str:
@@ -36,7 +37,7 @@ def splice(page: str, block: str) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = parser(__doc__)
     ap.add_argument("--page", type=Path, default=PAGE, help="the page to update (default docs/performance.md)")
     ap.add_argument("--print", dest="dry", action="store_true", help="print the command and stop")
     ap.add_argument("bench", nargs="*", help="after --: the bench arguments (default: the page's command)")
@@ -57,4 +58,4 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

@@ -8,15 +8,12 @@ simple exposure. The ``street`` scene also gets ``scene_street_frames.png`` (fra
 
 from __future__ import annotations
 
-import os
-import sys
 from pathlib import Path
 
 import numpy as np
+from common import parser, run
 
-os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-
-from harness import load_plugins  # noqa: E402
+from harness import load_plugins
 
 SUITE = ("cornell", "atrium", "courtyard", "street", "furnace")
 
@@ -37,7 +34,10 @@ def write_png(path: Path, pixels: np.ndarray) -> None:
     out.close()
 
 
-def main(out_dir: Path) -> None:
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("out_dir", nargs="?", type=Path, default=Path("docs/images"), metavar="OUTPUT_DIR")
+    out_dir = ap.parse_args(argv).out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     registry = load_plugins()
     renderer = registry.get("renderer", "raster").factory(supersample=4)
@@ -54,7 +54,8 @@ def main(out_dir: Path) -> None:
             write_png(out_dir / f"scene_{name}_frames.png",
                       np.concatenate([encode(f, exposure) for f in frames], axis=1))
         print(f"{name}: {out_dir / f'scene_{name}.png'}")
+    return 0
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("docs/images"))
+    run(main)

@@ -6,8 +6,9 @@ Usage::
                                                                [--height 720] [--repeats 3]
 
 Renders one scene (``../shared/scenes/<scene>`` through the Mitsuba loader, or a registered
-scene) at 1 spp and times, in one process and taking turns call by call, the parts a frame is made
-of (process CPU time, median of ``--repeats`` after one untimed call each):
+scene) at 1 spp and times, in one process and taking turns call by call
+(:func:`harness.timer.alternate`), the parts a frame is made of (process CPU time, median of
+``--repeats`` after one untimed call each):
 
 - ``setup``: the primary rays and first hits (:func:`.integrator.first_hits`), once per frame;
 - ``paths D`` for ``max_depth`` D = 1 .. ``--max-depth``: the path kernel alone, from the same
@@ -24,25 +25,24 @@ Prints microseconds per pixel for each part and the increments. Traversal alone,
 
 from __future__ import annotations
 
-import argparse
 import statistics
-import time
 import warnings
 
 import numpy as np
 from bench_pathtracer import SCENES, harness_scene
+from common import alternate, integer, parser, run
 
 from harness import load_plugins
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scene", default="classroom")
-    parser.add_argument("--width", type=int, default=1280)
-    parser.add_argument("--height", type=int, default=720)
-    parser.add_argument("--max-depth", type=int, default=5)
-    parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--scene", default="classroom")
+    ap.add_argument("--width", type=integer(1), default=1280)
+    ap.add_argument("--height", type=integer(1), default=720)
+    ap.add_argument("--max-depth", type=integer(1), default=5)
+    ap.add_argument("--repeats", type=integer(1), default=3)
+    args = ap.parse_args(argv)
     from plugins.renderers.pathtracer import PathTracer
     from plugins.renderers.pathtracer.pixels import PixelState
 
@@ -52,7 +52,7 @@ def main() -> None:
         scene = harness_scene(registry, args.scene)
     if scene is None:
         print(f"skipping {args.scene!r}: neither a registered scene nor a folder {SCENES / args.scene}")
-        return
+        return 0
     size = (args.width, args.height)
     n = args.width * args.height
     base = PathTracer(max_depth=args.max_depth)
@@ -72,14 +72,7 @@ def main() -> None:
     for depth in range(1, args.max_depth + 1):
         parts[f"paths {depth}"] = paths(PathTracer(max_depth=depth))
     parts[f"paths {args.max_depth}, bsdf"] = paths(PathTracer(max_depth=args.max_depth, strategy="bsdf"))
-    for fn in parts.values():
-        fn()
-    cpu = {name: [] for name in parts}
-    for _ in range(args.repeats):
-        for name, fn in parts.items():
-            c0 = time.process_time()
-            fn()
-            cpu[name].append(time.process_time() - c0)
+    cpu = {name: [ms / 1e3 for ms in v] for name, v in alternate(parts, args.repeats).cpu_ms.items()}
     us = {name: statistics.median(v) / n * 1e6 for name, v in cpu.items()}
     print(f"\n{args.scene} {args.width}x{args.height}, 1 spp; CPU microseconds per pixel, median of {args.repeats} "
           f"[min-max]")
@@ -95,7 +88,8 @@ def main() -> None:
     total = us["setup"] + us[deepest]
     print(f"frame (setup + {deepest}) {total:.3f}; setup {us['setup'] / total:.0%}, per-path fixed cost "
           f"{us['paths 1'] / total:.0%}, next-event estimation {(us[deepest] - us[deepest + ', bsdf']) / total:.0%}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

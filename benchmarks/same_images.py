@@ -1,14 +1,14 @@
 """Whether the path tracer renders the third-party Mitsuba scenes bit for bit as an earlier copy did.
 
-    git archive REV | tar -x -C /tmp/before
-    python benchmarks/same_images.py --baseline /tmp/before [--width 64 --height 36 --spp 4 --max-depth 8]
-    python benchmarks/same_images.py --baseline /tmp/before --builtin
+    python benchmarks/same_images.py --baseline REV [--width 64 --height 36 --spp 4 --max-depth 8]
+    python benchmarks/same_images.py --baseline REV --builtin
 
 Loads ``classroom``, ``living-room`` and ``sponza`` from ``../shared/scenes`` with this project's
-Mitsuba loader and with the copy's, renders each with both path tracers (same seed, spp and
-resolution) and prints, per scene, whether colour and variance are bit-identical and the largest
-difference. Used where a change must leave those scenes' images (and so their region ratios to
-Mitsuba 3, ``docs/pathtracer.md``) as they were.
+Mitsuba loader and with the one at git revision REV (imported beside it: ``benchmarks/common.py``),
+renders each with both path tracers (same seed, spp and resolution) and prints, per scene,
+whether colour and variance are bit-identical and the largest difference. Used where a change
+must leave those scenes' images (and so their region ratios to Mitsuba 3, ``docs/pathtracer.md``)
+as they were.
 
 ``--builtin``: instead, every registered ``mesh`` scene (first and last frame, at most 128x96,
 8 spp, seed 2), both renderers on the same scene object; colour, variance, visibility and the
@@ -17,39 +17,39 @@ direct part compared, so that the default run's leaderboard is known to be uncha
 
 from __future__ import annotations
 
-import argparse
-import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
+from bench_pathtracer import baseline
+from common import SHARED_SCENES, integer, parser, run
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from bench_pathtracer import baseline  # noqa: E402
-
-from plugins.renderers.pathtracer import PathTracer  # noqa: E402
-from plugins.scenes.mitsuba import load  # noqa: E402
+from plugins.renderers.pathtracer import PathTracer
+from plugins.scenes.mitsuba import load
 
 SCENES = ("classroom", "living-room", "sponza")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--baseline", type=Path, required=True, help="folder with a copy of an earlier project")
-    parser.add_argument("--width", type=int, default=64)
-    parser.add_argument("--height", type=int, default=36)
-    parser.add_argument("--spp", type=int, default=4)
-    parser.add_argument("--max-depth", type=int, default=8)
-    parser.add_argument("--builtin", action="store_true", help="compare the registered mesh scenes instead")
-    args = parser.parse_args()
-    old_tracer, old_load = baseline(args.baseline.resolve())
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--baseline", required=True, metavar="REV", help="git revision to compare with")
+    ap.add_argument("--width", type=integer(1), default=64)
+    ap.add_argument("--height", type=integer(1), default=36)
+    ap.add_argument("--spp", type=integer(1), default=4)
+    ap.add_argument("--max-depth", type=integer(1), default=8)
+    ap.add_argument("--builtin", action="store_true", help="compare the registered mesh scenes instead")
+    args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
-    if args.builtin:
-        builtin(old_tracer)
-        return
-    root = Path(__file__).resolve().parent.parent.parent / "shared" / "scenes"
+    with baseline(args.baseline) as (old_tracer, old_load, _):
+        if args.builtin:
+            builtin(old_tracer)
+        else:
+            shared(args, old_tracer, old_load)
+    return 0
+
+
+def shared(args, old_tracer, old_load) -> None:
+    """The third-party scenes rendered by both path tracers, each loaded by its own loader."""
+    root = SHARED_SCENES
     for name in SCENES:
         folder = root / name
         if not folder.is_dir():
@@ -86,4 +86,4 @@ def builtin(old_tracer) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

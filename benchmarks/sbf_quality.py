@@ -10,10 +10,8 @@ the registered ``rmse``, ``relmse`` and ``ssim`` metrics against the renderer's 
 
 from __future__ import annotations
 
-import argparse
-import time
-
 import pandas as pd
+from common import integer, integers, names, parser, run, timed_call
 
 from harness import CHANNELS, load_plugins
 
@@ -31,7 +29,7 @@ def _score(registry, out, ref):
     return {m: float(registry.metrics[m].factory()(out, ref)) for m in METRICS if m in registry.metrics}
 
 
-def run(scenes, spps, seeds):
+def study(scenes, spps, seeds):
     registry = load_plugins()
     sbf = registry.filters["sbf"]
     eaw = registry.filters.get("eaw")
@@ -48,45 +46,42 @@ def run(scenes, spps, seeds):
             for seed in range(seeds):
                 frame = renderer.render(scene, 0, spp=n, seed=seed, channels=channels, resolution=res)
                 npix = frame.height * frame.width
-                entries = {"noisy": (frame["color"], n * npix, 0.0)}
+                entries = {"noisy": (frame["color"], n * npix, 0.0)}  # (output, samples, ms of one call)
                 if eaw is not None:
                     f = eaw.factory(backend="cpu", **dict(eaw.params))
                     f(frame)  # compile
-                    t0 = time.perf_counter()
-                    out = f(frame)
-                    entries["eaw"] = (out, n * npix, time.perf_counter() - t0)
+                    out, ms, _ = timed_call(lambda f=f, x=frame: f(x))
+                    entries["eaw"] = (out, n * npix, ms)
                 f = sbf.factory(backend="cpu")
                 f(frame)  # compile
-                t0 = time.perf_counter()
-                out = f(frame)
-                entries["sbf fixed"] = (out, n * npix, time.perf_counter() - t0)
+                out, ms, _ = timed_call(lambda f=f, x=frame: f(x))
+                entries["sbf fixed"] = (out, n * npix, ms)
                 for passes in (1, 2):
                     half = n // 2
                     sampler = renderer.sampler(scene, 0, spp=half, seed=seed, channels=channels | {"spp"},
                                                resolution=res)
                     f = sbf.factory(backend="cpu", mode="adaptive", extra_spp=float(n - half), passes=passes)
-                    t0 = time.perf_counter()
-                    out = f(sampler.frame, sampler=sampler)
-                    spent = time.perf_counter() - t0
-                    entries[f"sbf adaptive {half}+{n - half} ({passes} pass)"] = (out, sampler.samples_used, spent)
-                for name, (out, samples, seconds) in entries.items():
+                    out, ms, _ = timed_call(lambda f=f, s=sampler: f(s.frame, sampler=s))
+                    entries[f"sbf adaptive {half}+{n - half} ({passes} pass)"] = (out, sampler.samples_used, ms)
+                for name, (out, samples, ms) in entries.items():
                     rows.append({"scene": scene_name, "renderer": rname, "spp": n, "seed": seed, "entry": name,
-                                 "spp_used": samples / npix, "ms": seconds * 1e3, **_score(registry, out, ref)})
+                                 "spp_used": samples / npix, "ms": ms, **_score(registry, out, ref)})
     return pd.DataFrame(rows)
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", default="synthetic-edges,cornell")
-    parser.add_argument("--spp", default="4,8")
-    parser.add_argument("--seeds", type=int, default=3)
-    args = parser.parse_args()
-    df = run(args.scenes.split(","), [int(s) for s in args.spp.split(",")], args.seeds)
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("--scenes", type=names, default=["synthetic-edges", "cornell"])
+    ap.add_argument("--spp", type=integers(2), default=[4, 8])
+    ap.add_argument("--seeds", type=integer(1), default=3)
+    args = ap.parse_args(argv)
+    df = study(args.scenes, args.spp, args.seeds)
     cols = ["spp_used", "ms", *[m for m in METRICS if m in df]]
     table = df.groupby(["scene", "spp", "entry"], sort=False)[cols].mean()
     with pd.option_context("display.width", 200, "display.max_rows", 200):
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

@@ -11,10 +11,9 @@ Filters lacking a channel are listed with the reason. The table holds the mean o
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
 import pandas as pd
+from common import names, parser, run
 
 from harness import load_plugins
 
@@ -61,11 +60,11 @@ def _spp(scene) -> int:
     return scene.params["capture"]["spp"] or 1
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("folder")
-    parser.add_argument("--filters", type=lambda s: s.split(","), default=None)
-    args = parser.parse_args(argv)
+def main(argv=None) -> int:
+    ap = parser(__doc__)
+    ap.add_argument("folder")
+    ap.add_argument("--filters", type=names, default=None)
+    args = ap.parse_args(argv)
     table, skipped = score(args.folder, args.filters)
     print("| filter | " + " | ".join(table.columns) + " |")
     print("|---|" + "---:|" * len(table.columns))
@@ -73,7 +72,8 @@ def main(argv=None) -> None:
         print(f"| {name} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
     for name, reason in skipped.items():
         print(f"skipped {name}: {reason}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    run(main)

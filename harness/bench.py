@@ -68,11 +68,18 @@ class BenchResult:
         Per-stage milliseconds of the last timed call of filters that declare ``stage_timing``.
     environment : dict
         :func:`bench_environment` at the start, with ``load_end`` (load average at the end).
+    ratios : DataFrame
+        With ``--rounds`` (:func:`harness.bench_rounds.bench_rounds`): ratios taken round by
+        round (:data:`harness.bench_rounds.RATIO_COLUMNS`); empty otherwise.
+    order : dict
+        With ``--rounds``: resolution -> each round's call order (entry labels).
     """
 
     table: pd.DataFrame
     stages: pd.DataFrame
     environment: dict = field(default_factory=dict)
+    ratios: pd.DataFrame = field(default_factory=pd.DataFrame)
+    order: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -149,8 +156,9 @@ class BenchTask(Task):
             try:
                 filt = spec.factory(backend=job.backend, **job.param_dict)
                 filt.reset()
-                for t, frame in enumerate(frames):
-                    filt, out, timing, _ = time_frame(filt, spec, job.backend, frame, t == 0, job.repeats,
+                for t, frame in enumerate(frames):  # the frames before the last: one call each
+                    repeats = job.repeats if t == len(frames) - 1 else 1
+                    filt, out, timing, _ = time_frame(filt, spec, job.backend, frame, t == 0, repeats,
                                                       check=f"filter {job.filter!r}")
                     measure.timing.setdefault("compile_ms", timing.get("compile_ms", math.nan))
                     context.progress(1)
@@ -189,18 +197,18 @@ def _rmse(registry, out, inputs: GroupInputs, job: Job) -> float:
 def time_floor(spec, frames: Sequence, repeats: int) -> dict:
     """The timing protocol applied to the floor of ``spec`` on ``frames`` (its last frame's timing).
 
-    ``frames`` are what the filter sees (its declared channels); every frame is timed with
-    ``repeats`` calls, as :func:`harness.jobs.run_job` does for the filter, each frame after a
-    warm-up call (on a copy: the state goes on from the timed calls): a temporal floor also
+    ``frames`` are what the filter sees (its declared channels); the last frame is timed with
+    ``repeats`` calls, the ones before it with one, as :class:`BenchTask` does for the filter,
+    each frame after a warm-up call (on a copy: the state goes on from the timed calls): a temporal floor also
     reads its history from the second frame on, a new input layout and so a new kernel to
     compile, which a timed call must not include.
     """
     floor, fspec = floor_of(spec)
     floor.reset()
     timing: dict = {}
-    for frame in frames:
+    for k, frame in enumerate(frames):
         # not validated: its output is a sum, infinite where an input is (depth of the background)
-        floor, _, timing, _ = time_frame(floor, fspec, "cpu", frame, True, repeats)
+        floor, _, timing, _ = time_frame(floor, fspec, "cpu", frame, True, repeats if k == len(frames) - 1 else 1)
     return timing
 
 
@@ -259,6 +267,7 @@ def bench_filters(
     threads: Sequence[int | None] = (None,),
     backend: str = "cpu",
     repeats: int = 10,
+    steady: int = 0,
     params: Mapping[str, Mapping] | None = None,
     presets: Mapping[str, str] | None = None,
     error: bool = True,
@@ -285,7 +294,10 @@ def bench_filters(
         worker (None: the worker's own count, all cores unless ``NUMBA_NUM_THREADS`` says less).
     backend : str
     repeats : int
-        Timed calls per frame (>= 1).
+        Timed calls of the last frame (>= 1).
+    steady : int
+        Frames run (one call each) before the timed one: a temporal filter's steady state
+        (0: one frame, two where a filter is temporal).
     params, presets : mappings, optional
         As for :func:`harness.plan.make_plan`.
     error : bool
@@ -315,7 +327,7 @@ def bench_filters(
         raise ValueError(f"no renderer serves task {task!r} for scene {scene!r}")
     rspec = registry.get("renderer", rname)
     configured = {s.name: filter_params(s, (presets or {}).get(s.name), (params or {}).get(s.name, {})) for s in specs}
-    frames = 2 if any(s.temporal for s in specs) else 1
+    frames = sequence_frames(registry, scene, specs, steady)
     metric = "rmse" if error and "rmse" in registry.metrics and rspec.references else None
     channels = frozenset().union(*[(s.requires | s.optional) & rspec.provides for s in specs])
     say = progress or (lambda line: None)
@@ -341,9 +353,27 @@ def bench_filters(
                 + (f"{row['ms_median']:.4g} ms, floor {row['floor_ms']:.4g} ms" if row["status"] == "ok"
                    else row["status"]))
     table = _typed(pd.DataFrame(rows), with_rmse=metric is not None)
-    _add_ratios(table, peers, resolutions, threads)
+    add_ratios(table, peers, resolutions, threads)
     environment["load_end"] = _load()
     return BenchResult(table, pd.DataFrame(stages), environment)
+
+
+def sequence_frames(registry, scene: str, specs: Sequence, steady: int) -> int:
+    """Frames a bench renders: ``steady`` + 1 where asked, else 2 where a filter is temporal, else 1.
+
+    Raises
+    ------
+    ValueError
+        For ``steady`` < 0 or more frames than a sequence scene has.
+    """
+    if isinstance(steady, bool) or not isinstance(steady, int) or steady < 0:
+        raise ValueError(f"--steady must be an integer >= 1, got {steady!r}")
+    if not steady:
+        return 2 if any(s.temporal for s in specs) else 1
+    count = getattr(registry.get("scene", scene), "frames", None)
+    if isinstance(count, int) and 1 < count < steady + 1:  # a still scene renders any frame index
+        raise ValueError(f"--steady {steady}: scene {scene!r} has {count} frame(s); at most --steady {count - 1}")
+    return steady + 1
 
 
 def _table_row(bench_task: BenchTask, outcome, pixels: int, metric: str | None) -> tuple[dict, dict | None]:
@@ -381,9 +411,11 @@ def _ratio(a: float, b: float) -> float:
     return a / b if b > 0 else math.nan
 
 
-def _typed(table: pd.DataFrame, with_rmse: bool) -> pd.DataFrame:
-    """The fixed columns in :data:`COLUMNS` order and dtypes (missing values: NaN, "")."""
+def _typed(table: pd.DataFrame, with_rmse: bool, extra: Sequence[str] = ()) -> pd.DataFrame:
+    """The fixed columns in :data:`COLUMNS` order and dtypes (missing values: NaN, ""), then the
+    ``extra`` numeric ones (float64)."""
     columns = {k: v for k, v in COLUMNS.items() if with_rmse or k != "rmse"}
+    columns.update({k: "float64" for k in extra})
     for name, dtype in columns.items():
         if name not in table:
             table[name] = "" if dtype == "str" else math.nan
@@ -394,7 +426,7 @@ def _typed(table: pd.DataFrame, with_rmse: bool) -> pd.DataFrame:
     return table[list(columns)].reset_index(drop=True)
 
 
-def _add_ratios(table: pd.DataFrame, peers, resolutions, threads) -> None:
+def add_ratios(table: pd.DataFrame, peers, resolutions, threads) -> None:
     """``x_vs_PEER``, ``x_of_WxH`` (first resolution) and ``speedup_vs_Nt`` (first thread count)."""
     if table.empty:
         return

@@ -60,6 +60,9 @@ def bench_markdown(result, command: str) -> str:
     shown = table.drop(columns=[c for c in ("notes",) if c in table and not table[c].astype(bool).any()])
     parts = [f"Command: `{command}`", "", environment_line(result.environment), "",
              "#### Time per frame, floor, peak memory, ratios", "", to_markdown(shown)]
+    if not result.ratios.empty:
+        parts += ["#### Ratios round by round (filter ms / other ms in the same round)", "",
+                  to_markdown(result.ratios)]
     scaling = scaling_table(table)
     if not scaling.empty and len(scaling.columns) > 2:
         parts += ["#### Median milliseconds by resolution and threads", "", to_markdown(scaling)]

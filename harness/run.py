@@ -39,6 +39,7 @@ from harness.lock import FolderLock, check_out_dir
 from harness.manifest import make_manifest, provenance, write_manifest
 from harness.nonfinite import apply_nonfinite_policy
 from harness.plan import Group, Plan
+from harness.real_resolutions import timing_frames
 from harness.references import reference_record
 from harness.remote_renders import RemoteRenders
 from harness.renders import RenderStore
@@ -46,7 +47,6 @@ from harness.report import outputs as kept
 from harness.results import write_table
 from harness.rows import combine, make_table
 from harness.tasks import JobTask
-from harness.real_resolutions import timing_frames
 
 
 @dataclass

@@ -7,12 +7,16 @@ imported them (the core imports neither). A library whose thread count is a prop
 object it builds (OIDN's ``numThreads`` device parameter) reads :func:`compute_threads` when
 the plugin builds that object. :func:`using_threads` applies a count for the duration of a
 task in the worker process and restores the previous counts afterwards.
+:func:`thread_cpu_seconds` and :func:`balance` say how the work of a call was shared among
+the process's threads (``denoise-bench bench --balance``).
 """
 
 from __future__ import annotations
 
+import math
+import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 
 
@@ -94,4 +98,45 @@ def using_threads(count: int | None) -> Iterator[int]:
         _restore(previous)
 
 
-__all__ = ["compute_threads", "max_threads", "using_threads"]
+def thread_cpu_seconds() -> dict[str, float]:
+    """CPU seconds (user + system) of each thread of this process, by thread id.
+
+    Read from ``/proc/self/task/*/stat`` (Linux; clock ticks, usually 10 ms): an empty dict
+    elsewhere. A thread that ends while it is read is left out.
+    """
+    try:
+        tick = os.sysconf("SC_CLK_TCK")
+        tids = os.listdir("/proc/self/task")
+    except (OSError, ValueError, AttributeError):
+        return {}
+    times = {}
+    for tid in tids:
+        try:
+            with open(f"/proc/self/task/{tid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            times[tid] = (int(fields[11]) + int(fields[12])) / tick  # utime, stime (fields 14, 15)
+        except (OSError, IndexError, ValueError):
+            continue
+    return times
+
+
+def balance(spent: Mapping[str, float]) -> tuple[float, float]:
+    """How evenly work was shared, from each thread's CPU seconds (differences of :func:`thread_cpu_seconds`).
+
+    Returns
+    -------
+    busiest_share : float
+        The busiest thread's share of the total (1 / threads when shared evenly, 1 when one
+        thread did everything).
+    spread : float
+        Total / busiest: the speed-up over one thread that this sharing allows on otherwise
+        idle cores. NaN (both) when no CPU time was recorded.
+    """
+    busy = [t for t in spent.values() if t > 0]
+    if not busy:
+        return math.nan, math.nan
+    total, top = sum(busy), max(busy)
+    return top / total, total / top
+
+
+__all__ = ["balance", "compute_threads", "max_threads", "thread_cpu_seconds", "using_threads"]

@@ -76,6 +76,7 @@ def _weights_file(tmp_path, model, name="w.npz"):
     return save_weights(model_arrays(model), {"seed": -1}, tmp_path / name)
 
 
+@pytest.mark.slow
 def test_inference_equals_the_training_graph(registry, tmp_path):
     model = _random_model(3, seed=1)
     path = _weights_file(tmp_path, model)
@@ -137,6 +138,7 @@ def test_shipped_weights_match_their_recorded_hashes(registry):
     assert filt.meta["arrays_sha256"] == SHIPPED[DEFAULT_LAYERS]["arrays"]
 
 
+@pytest.mark.slow
 def test_shipped_weights_beat_the_aliased_input_on_held_out_training_scenes():
     for layers in SHIPPED:
         arrays, meta = load_weights(shipped_weights(layers))

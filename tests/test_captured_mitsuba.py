@@ -8,6 +8,7 @@ temporary folder only (they derive from a third-party scene).
 from __future__ import annotations
 
 import importlib.util
+import sys
 import warnings
 
 import numpy as np
@@ -22,9 +23,15 @@ pytestmark = pytest.mark.slow
 
 
 def _load(path):
+    """The script at ``path`` as a module, its folder first on the path while it is imported (as when
+    run: ``benchmarks/`` scripts import ``common``)."""
     spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    sys.path.insert(0, str(path.parent))
+    try:
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(path.parent))
     return module
 
 

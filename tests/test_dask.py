@@ -63,6 +63,7 @@ def run(registry, executor, tmp_path, filters, scenes=SCENES, name="o", seeds=(0
                          resolution=(40, 30), cache_dir=tmp_path / f"cache-{name}").table
 
 
+@pytest.mark.slow
 @needs_dask
 def test_the_cluster_has_two_worker_processes(cluster):
     pids = cluster.client.run(os.getpid)
@@ -70,6 +71,7 @@ def test_the_cluster_has_two_worker_processes(cluster):
     assert cluster.describe()["workers"] == 2 and cluster.allowed_failures == 1
 
 
+@pytest.mark.slow
 @needs_dask
 @pytest.mark.parametrize(("scene", "renderer", "frames", "spp", "chunk"),
                          [("synthetic-moving", "synthetic", 3, 23, 5), ("cornell", "pathtracer", 1, 10, 3)])
@@ -88,6 +90,7 @@ def test_a_chunked_reference_is_bit_identical_to_the_local_one(registry, cluster
     assert store.cache.misses["references"] == frames and not list((tmp_path / "c" / "partial").rglob("*.npz"))
 
 
+@pytest.mark.slow
 @needs_dask
 def test_a_reference_resumes_from_its_stored_chunks(registry, cluster, tmp_path):
     """A checkpoint left by an interrupted render is used: only the remaining chunks are tasks."""
@@ -116,6 +119,7 @@ def kill_a_worker_running(client, prefix: str, while_alive, timeout: float = 120
     return []
 
 
+@pytest.mark.slow
 @needs_dask
 def test_a_worker_killed_while_it_renders_a_chunk_loses_and_repeats_no_samples(registry, cluster, tmp_path):
     """The killed chunk runs again elsewhere; the reference is the local one and each sample counts once."""
@@ -133,6 +137,7 @@ def test_a_worker_killed_while_it_renders_a_chunk_loses_and_repeats_no_samples(r
     assert killed[0] not in cluster.client.run(os.getpid).values()
 
 
+@pytest.mark.slow
 @needs_dask
 def test_frames_rendered_on_workers_equal_local_ones(registry, cluster, tmp_path):
     store = RenderStore(registry, Cache(tmp_path / "c"), resolution=(24, 16))
@@ -146,6 +151,7 @@ def test_frames_rendered_on_workers_equal_local_ones(registry, cluster, tmp_path
         assert np.array_equal(frame[name], local[name]), name
 
 
+@pytest.mark.slow
 @needs_dask
 def test_a_run_has_the_metric_columns_of_the_local_run(registry, cluster, tmp_path):
     filters = ["passthrough", "gaussian", "median3", "slow"]
@@ -159,6 +165,7 @@ def test_a_run_has_the_metric_columns_of_the_local_run(registry, cluster, tmp_pa
     assert stored == sorted(on_cluster.job_id.unique())
 
 
+@pytest.mark.slow
 @needs_dask
 def test_a_worker_killed_while_it_holds_tasks_is_replaced_and_the_run_completes(registry, cluster, tmp_path):
     filters = ["slow", "passthrough", "gaussian"]
@@ -182,6 +189,7 @@ def test_a_worker_killed_while_it_holds_tasks_is_replaced_and_the_run_completes(
     assert killed[0] not in client.run(os.getpid).values()
 
 
+@pytest.mark.slow
 @needs_dask
 def test_a_task_that_kills_its_workers_becomes_a_named_error_row(registry, cluster, tmp_path):
     table = run(registry, cluster, tmp_path, ["exits", "gaussian"], scenes=["synthetic-edges"], name="exits")
@@ -198,6 +206,7 @@ def test_a_task_that_kills_its_workers_becomes_a_named_error_row(registry, clust
     assert set(again.status) == {"ok"}  # the cluster is whole again
 
 
+@pytest.mark.slow
 @needs_dask
 def test_cli_render_then_run_on_a_local_cluster(tmp_path):
     cache = tmp_path / "cache"
@@ -215,6 +224,7 @@ def test_cli_render_then_run_on_a_local_cluster(tmp_path):
     assert json.loads((tmp_path / "o" / "manifest.json").read_text())["executor"]["executor"] == "dask"
 
 
+@pytest.mark.slow
 @needs_dask
 def test_an_interrupted_cluster_run_resumes_like_a_local_one(tmp_path):
     def args(executor, out):

@@ -144,6 +144,7 @@ def test_cpu_matches_oracle(shape, params, extra):
     assert rel_err(got, want) < 1e-5
 
 
+@pytest.mark.slow
 def test_cuda_simulator_matches_oracle():
     """The CUDA kernels under NUMBA_ENABLE_CUDASIM=1 (a subprocess: the setting must precede
     the first import of numba.cuda) against the oracle."""

@@ -317,6 +317,7 @@ def test_weights_errors(tmp_path):
 
 # --- training -------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_training_data_excludes_benchmark_scenes_and_is_deterministic():
     from plugins.filters.lbf import train as T
 
@@ -329,6 +330,7 @@ def test_training_data_excludes_benchmark_scenes_and_is_deterministic():
     assert T._variant(rng_b, T.FULL) == variants[0]
 
 
+@pytest.mark.slow
 def test_quick_training_lowers_heldout_relmse(tmp_path):
     reg = load_plugins()
     path = reg.filters["lbf"].trainer(seed=1, output=tmp_path / "quick.npz", quick=True)
@@ -367,6 +369,7 @@ def test_inference_does_not_import_torch():
     assert out.strip() == "False"
 
 
+@pytest.mark.slow
 def test_cuda_simulator_matches_cpu():
     out = _run("""
         import numpy as np
@@ -399,6 +402,7 @@ print(np.asarray(spec.factory()(frame), np.float32).tobytes().hex())
 """
 
 
+@pytest.mark.slow
 def test_output_does_not_depend_on_the_numba_cache(tmp_path):
     """A fresh compile and a load from Numba's cache give the same bits (they differed by about
     1e-8 relative while the per-row helpers were compiled with ``fastmath``)."""

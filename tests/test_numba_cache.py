@@ -6,6 +6,8 @@ import subprocess
 import sys
 import textwrap
 
+import pytest
+
 from harness import numba_cache
 from harness.numba_cache import compile_unit, configure_numba_cache, source_digest
 
@@ -55,6 +57,7 @@ def _run_child(root, cache_home):
     return json.loads(out.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_an_edit_recompiles_its_own_plugin_only(tmp_path):
     root = tmp_path / "src"
     for name in ("a", "b"):

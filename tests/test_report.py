@@ -74,6 +74,7 @@ def test_report_command_rebuilds_with_budgets_and_metrics_and_without_frames(run
     assert missing.returncode == 2 and missing.stdout == ""
 
 
+@pytest.mark.slow
 def test_report_opens_in_a_headless_browser(run_dir, tmp_path):
     browser = shutil.which("chromium") or shutil.which("chromium-browser")
     if browser is None:

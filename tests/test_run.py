@@ -87,6 +87,7 @@ def test_run_writes_results_and_manifest_and_reuses_the_cache(tmp_path):
     assert "gaussian" in shown.stdout and "harness 0.1.0" in shown.stdout
 
 
+@pytest.mark.slow
 def test_a_killed_run_resumes_without_recomputing_stored_jobs(tmp_path):
     args = [
         "run",
@@ -176,6 +177,7 @@ def test_broken_filters_give_error_rows_and_the_run_goes_on(tmp_path):
     assert (df[df["filter"] == "passthrough"].frame.tolist()) == [0, 1]
 
 
+@pytest.mark.slow
 def test_strict_makes_errors_fail_the_command(tmp_path, fake_distribution):
     path = fake_distribution(
         "bad-dist",
@@ -305,6 +307,7 @@ def test_pictures_are_written(tmp_path):
     assert images == ["gaussian-cpu-spp1.png", "input-spp1.png", "reference.png"]
 
 
+@pytest.mark.slow
 def test_mesh_scenes_run_end_to_end_with_the_path_tracer(tmp_path):
     out = bench(["run", "--scenes", "cornell,street", "--frames", "2", "--resolution", "32x24", "--reference-spp", "16",
                  "--filters", "eaw,svgf,sbf,lbf,passthrough", "--strict", "--quiet", "--repeats", "1",

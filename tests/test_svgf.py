@@ -278,6 +278,7 @@ def test_colour_is_the_authority_over_direct(registry, renderer):
     assert np.isfinite(_svgf(registry)(frame.replace(indirect=indirect))).all()
 
 
+@pytest.mark.slow
 def test_cuda_backend_agrees_with_cpu_in_simulator():
     script = textwrap.dedent(
         """

@@ -38,6 +38,7 @@ def test_grid_points_refuse_bad_grids(overrides, grid, message):
         grid_points("f", overrides, grid)
 
 
+@pytest.mark.slow
 def test_every_grid_point_is_a_job_with_its_params_in_its_identity(reg, tmp_path):
     store = RenderStore(reg, Cache(tmp_path / "c"))
     plan = make_plan(reg, store, [reg.scenes["synthetic-edges"]], ["eaw", "gaussian"], ["rmse"], spp=[1, 2],
@@ -64,6 +65,7 @@ def test_cli_parses_grids_and_budgets():
             build_parser().parse_args(["run", *bad])
 
 
+@pytest.mark.slow
 def test_a_sweep_over_filters_and_spp_gives_a_monotone_front(reg, tmp_path):
     """The issue's sweep on a synthetic scene: every configuration a point, the renderer's cost per spp added.
 
@@ -91,6 +93,7 @@ def test_a_sweep_over_filters_and_spp_gives_a_monotone_front(reg, tmp_path):
     assert {"eaw/cpu iterations=1 @1spp", "svgf/cpu iterations=5 @4spp"} <= set(points.entry)
 
 
+@pytest.mark.slow
 def test_each_configuration_is_timed_at_each_spp_and_the_front_uses_its_own(reg, tmp_path):
     """``--spp 1,2`` on a synthetic scene timed at 1280x720: every configuration has a real-resolution
     time at both spp, and each point's filter time is the one measured at its own spp."""

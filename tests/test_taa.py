@@ -212,6 +212,7 @@ def test_parameters_are_validated(registry):
     assert spec.tasks == {"antialias"} and spec.temporal and spec.backends == ("cpu", "cuda")
 
 
+@pytest.mark.slow
 def test_cuda_simulator_agrees_with_cpu():
     script = textwrap.dedent(
         """

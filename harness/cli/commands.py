@@ -10,6 +10,7 @@ from collections import defaultdict
 import pandas as pd
 
 from harness.bench import DEFAULT_PEERS, bench_filters
+from harness.bench_rounds import bench_rounds
 from harness.benchmark import run_benchmark
 from harness.cache import Cache
 from harness.cli.checks import (
@@ -47,6 +48,7 @@ from harness.results import (
     timing_setups,
     to_markdown,
 )
+from harness.threads import max_threads
 
 
 def _grouped(pairs) -> dict:
@@ -446,19 +448,35 @@ def cmd_bench(registry, args) -> int:
         if not args.quiet:
             print(f"bench: {line}", file=sys.stderr, flush=True)
 
+    rounds = args.rounds or (args.repeats if args.baseline is not None or args.balance else None)
+    threads = args.threads or ([1, max_threads()] if args.balance else [None])
+    settings = dict(peers=peers, scene=args.scene, renderer=args.renderer, task=args.task,
+                    resolutions=args.resolution, threads=threads, backend=args.backend, steady=args.steady or 0,
+                    params=_grouped(args.param), presets=dict(args.preset), error=args.error, progress=say)
     with _executor(registry, args) as executor:
-        result = bench_filters(
-            registry, store, executor, args.filters, peers=peers, scene=args.scene, renderer=args.renderer,
-            task=args.task, resolutions=args.resolution, threads=args.threads or [None], backend=args.backend,
-            repeats=args.repeats, params=_grouped(args.param), presets=dict(args.preset), error=args.error,
-            progress=say,
-        )
-    print(f"scene {args.scene}, backend {args.backend}, {args.executor} executor, {args.repeats} timed calls per "
-          "frame; cpu_ms = process CPU time per call (all threads), x_vs_PEER = peer ms / filter ms, "
+        if rounds is None:
+            result = bench_filters(registry, store, executor, args.filters, repeats=args.repeats, **settings)
+        else:
+            result = bench_rounds(registry, store, executor, args.filters, rounds=rounds, baseline=args.baseline,
+                                  balance=args.balance, **settings)
+    timed = (f"frame {args.steady} after {args.steady} untimed frame(s)" if args.steady else "one frame (two for "
+             "temporal filters: the second is timed)")
+    how = (f"{rounds} rounds, the filters in turn, one call each" if rounds is not None
+           else f"{args.repeats} timed calls in a row")
+    print(f"scene {args.scene}, backend {args.backend}, {args.executor} executor, {timed}, {how}; "
+          "cpu_ms = process CPU time per call (all threads), x_vs_PEER = peer ms / filter ms, "
           "x_of_floor = ms / floor ms, x_of_WxH = ms / ms at WxH, "
           "speedup_vs_Nt = ms at N threads / ms, peak_frames = peak / one float32 RGB frame")
     print(environment_line(result.environment))
     print(format_table(result.table))
+    if not result.ratios.empty:
+        print("\nRatios round by round: x = filter ms / other ms in the same round (median, min, max; x_cpu: "
+              "process CPU time); against a floor x is x_of_floor, against the filter at 1 thread the inverse "
+              "speed-up, against NAME@REV now / then")
+        print(format_table(result.ratios))
+    for resolution, order in result.order.items():
+        shown = "; ".join(", ".join(labels) for labels in order[:2])
+        print(f"call order at {resolution}, rounds 1-{min(2, len(order))} of {len(order)}: {shown}")
     if not result.stages.empty:
         print("\nPer-stage milliseconds (last timed call):")
         print(format_table(result.stages))
@@ -481,6 +499,11 @@ def bench_command(args, peers) -> str:
     if args.threads:
         parts += ["--threads", ",".join(map(str, args.threads))]
     parts += ["--backend", args.backend, "--repeats", str(args.repeats)]
+    for option in ("rounds", "steady", "baseline"):
+        if getattr(args, option) is not None:
+            parts += [f"--{option}", shlex.quote(str(getattr(args, option)))]
+    if args.balance:
+        parts.append("--balance")
     if not args.error:
         parts.append("--no-error")
     for name, key, value in args.param:

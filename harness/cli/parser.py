@@ -430,7 +430,18 @@ def build_parser() -> Parser:
                        help="time every filter and its floor at each of these thread counts (Numba, OpenCV, "
                             "PyTorch, OIDN), e.g. 1,2,all (default: the worker's own, all cores)")
     bench.add_argument("--backend", choices=["cpu", "cuda"], default="cpu")
-    bench.add_argument("--repeats", type=integer(1), default=10)
+    bench.add_argument("--repeats", type=integer(1), default=10,
+                       help="timed calls of the timed frame, in a row, per filter (default 10)")
+    bench.add_argument("--rounds", type=integer(1), default=None, metavar="N",
+                       help="time every filter, peer, floor and baseline in one worker, in turn: N rounds of one "
+                            "call each, in a new (seeded) order every round; ratios taken round by round")
+    bench.add_argument("--baseline", default=None, metavar="REV",
+                       help="also time each filter as it was at git revision REV (NAME@REV), in the same rounds")
+    bench.add_argument("--steady", type=integer(1), default=None, metavar="N",
+                       help="time frame N, after frames 0..N-1 (a temporal filter's steady state)")
+    bench.add_argument("--balance", action="store_true",
+                       help="thread balance: rounds at 1 and all threads (unless --threads), with each thread's "
+                            "CPU time (busiest_share, thread_spread) and the per-round ratio to 1 thread")
     bench.add_argument("--no-error", dest="error", action="store_false",
                        help="time only: no reference and no rmse column (the raster renderer's 8x8 SSAA "
                             "reference needs about 6 GB at 1280x720, 13 GB at 1920x1080)")
