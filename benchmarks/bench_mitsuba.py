@@ -58,23 +58,18 @@ that is absent is skipped with a message.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
 import statistics
 import subprocess
-import sys
-import time
 import warnings
 from pathlib import Path
 
 import numpy as np
+from common import SHARED_SCENES, alternate, parser, run  # puts the project root on the path
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:  # a checkout that is not installed (a GPU machine with Mitsuba's wheels alone)
-    sys.path.insert(0, str(ROOT))
-SCENES = ROOT.parent / "shared" / "scenes"
+SCENES = SHARED_SCENES
 GBUFFER = ("position", "normal", "albedo", "depth", "object_id")
 REFERENCE_SPP = 4096
 REFERENCE_PIXELS = 1280 * 720
@@ -262,17 +257,15 @@ def speed(args) -> None:
         timed = dict(everyone)
         if not scene.objects and timed.pop("pathtracer", None) is not None:
             print(f"{name}: the path tracer is not timed (a scene without the scene plugin has no triangles)")
-        times = {r: [] for r in timed}
+        seeds = {r: iter(range(2, 2 + args.rounds + 1)) for r in timed}  # a new seed per timed frame
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            for renderer in timed.values():  # warm-up: loading, BVH, compilation (Dr.Jit: two kernel hashes seen)
-                for seed in (0, 1):
-                    renderer.render(scene, 0, spp=args.spp, seed=seed, resolution=size)
-            for k in range(args.rounds):
-                for r, renderer in timed.items():
-                    wall, cpu = time.perf_counter(), time.process_time()
-                    renderer.render(scene, 0, spp=args.spp, seed=k + 2, resolution=size)
-                    times[r].append((time.perf_counter() - wall, time.process_time() - cpu))
+            for renderer in timed.values():  # warm-up (alternate() adds one): loading, BVH, compilation
+                renderer.render(scene, 0, spp=args.spp, seed=0, resolution=size)
+            result = alternate({r: (lambda renderer=renderer, scene=scene, seed=seeds[r]: renderer.render(
+                scene, 0, spp=args.spp, seed=next(seed), resolution=size)) for r, renderer in timed.items()},
+                args.rounds)
+        times = {r: list(zip(np.divide(result.ms[r], 1e3), np.divide(result.cpu_ms[r], 1e3))) for r in timed}
         rates, cpu_rates = {}, {}
         for r, samples in times.items():
             wall = statistics.median(s[0] for s in samples)
@@ -345,9 +338,9 @@ def sequence(args) -> None:
             print(f"  written to {sidecar.parent}")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="what", required=True)
+def main(argv=None) -> None:
+    options = parser(__doc__)
+    sub = options.add_subparsers(dest="what", required=True)
     a = sub.add_parser("agree")
     a.add_argument("--scenes", nargs="+", default=["classroom", "living-room", "sponza"])
     a.add_argument("--width", type=int, default=160)
@@ -376,9 +369,9 @@ def main() -> None:
     for command in (a, s, q):
         command.add_argument("--scene-root", type=Path, default=SCENES,
                              help="folder holding the scene folders (default ../shared/scenes beside the project)")
-    args = parser.parse_args()
+    args = options.parse_args(argv)
     {"agree": agree, "speed": speed, "sequence": sequence}[args.what](args)
 
 
 if __name__ == "__main__":
-    main()
+    run(main)
