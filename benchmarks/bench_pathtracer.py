@@ -6,7 +6,8 @@ Usage::
                                           [--repeats 3] [--scenes atrium classroom] [--no-mitsuba]
                                           [--baseline REV]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
-                                          [--mitsuba-spp N] [--baseline REV]
+                                          [--mitsuba-spp N] [--baseline REV] [--relmse]
+                                          [--mitsuba-variant llvm_ad_rgb]
     python benchmarks/bench_pathtracer.py --threads 1 2 --no-mitsuba [--scenes classroom]
 
 ``--baseline REV``: the path tracer and the Mitsuba loader as they were at git revision REV
@@ -24,7 +25,11 @@ on a shared machine).
 ``--ratios``: instead of timing, converged images of the third-party scenes (``--scenes``,
 default classroom, living-room, sponza) by both renderers, and the ratio harness / Mitsuba 3 of
 the mean of each region of a 4x4 grid (RGB averaged): median, minimum and maximum, and the
-ratio of the whole image. Mitsuba 3 gets ``diffuse`` for ``roughdiffuse`` and the harness's
+ratio of the whole image. The harness's image is its reference (pixel-area samples, as Mitsuba
+integrates the pixel with its ``box`` filter). With ``--relmse`` also the relMSE of the harness's
+pixel-area and pixel-centre references against Mitsuba 3's image, beside the relMSE of a second
+Mitsuba 3 image (seed 1) against it: Mitsuba's own seed-to-seed noise at the same samples.
+Mitsuba 3 gets ``diffuse`` for ``roughdiffuse`` and the harness's
 ``roughplastic`` for ``phong`` (Mitsuba 3 has neither), so that the ratios measure the materials;
 a ``sun``/``sky``/``sunsky`` emitter becomes Mitsuba 3's own ``sunsky`` with the parameters that
 the harness's loader read (``Scene.params["sunsky"]``: Mitsuba 3's semantics, see
@@ -156,15 +161,21 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     raise RuntimeError("could not load the scene into Mitsuba 3")
 
 
-def mitsuba_frame(folder: Path, scene, args, tmp: Path, spp: int | None = None):
-    """A function rendering one frame of the scene with Mitsuba 3 ``scalar_rgb`` (returns the image);
-    ``spp`` samples per pixel (default ``args.spp``)."""
+def mitsuba_frame(folder: Path, scene, args, tmp: Path, spp: int | None = None, seed: int = 0):
+    """A function rendering one frame of the scene with Mitsuba 3 (``args.mitsuba_variant``, default
+    ``scalar_rgb``; returns the image); ``spp`` samples per pixel (default ``args.spp``)."""
     import mitsuba as mi
 
-    mi.set_variant("scalar_rgb")
+    mi.set_variant(getattr(args, "mitsuba_variant", "scalar_rgb"))
     mscene = mitsuba_scene(folder, scene, args, tmp)
     spp = spp or args.spp
-    return lambda: np.asarray(mi.render(mscene, spp=spp, seed=0), np.float64)[..., :3]
+    return lambda: np.asarray(mi.render(mscene, spp=spp, seed=seed), np.float64)[..., :3]
+
+
+def relmse(image: np.ndarray, reference: np.ndarray) -> float:
+    """``mean((x - r)^2 / (r^2 + 0.01))`` over pixels and channels (the harness's ``relmse``, uncorrected)."""
+    x, r = np.asarray(image, np.float64), np.asarray(reference, np.float64)
+    return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
 
 
 def region_means(image: np.ndarray, grid: int = 4) -> np.ndarray:
@@ -191,6 +202,10 @@ def ratios(registry, args, old=None) -> None:
             continue
         images = {"": PathTracer(max_depth=args.max_depth, rr_depth=args.rr_depth).reference(scene, 0, spp=args.spp,
                                                                                             resolution=size)}
+        if args.relmse:
+            images[" (pixel centres)"] = PathTracer(max_depth=args.max_depth, rr_depth=args.rr_depth,
+                                                    reference_pixel="centre").reference(scene, 0, spp=args.spp,
+                                                                                        resolution=size)
         if old is not None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
@@ -199,12 +214,18 @@ def ratios(registry, args, old=None) -> None:
                 old_scene, 0, spp=args.spp, resolution=size)
         with tempfile.TemporaryDirectory() as tmp:
             theirs = mitsuba_frame(folder, scene, args, Path(tmp), args.mitsuba_spp)()
+            again = mitsuba_frame(folder, scene, args, Path(tmp), args.mitsuba_spp, seed=1)() if args.relmse else None
         for label, ours in images.items():
             r = region_means(ours.astype(np.float64)) / np.maximum(region_means(theirs), 1e-12)
             whole = ours.mean(axis=(0, 1)) / np.maximum(theirs.mean(axis=(0, 1)), 1e-12)
             print(f"{name + label:<12} median {np.median(r):.3f}  min {r.min():.3f}  max {r.max():.3f}  "
                   f"whole image (r, g, b) {whole[0]:.3f} {whole[1]:.3f} {whole[2]:.3f}", flush=True)
             print("  regions (rows top to bottom):", "; ".join(" ".join(f"{v:.2f}" for v in row) for row in r))
+        if again is not None:
+            floor = relmse(again, theirs)
+            print(f"{name}: relMSE against Mitsuba 3 (seed 0): Mitsuba 3 seed 1 {floor:.4g} (its seed-to-seed noise)"
+                  + "".join(f"; harness{label} {relmse(ours, theirs):.4g} ({relmse(ours, theirs) / floor:.2f}x)"
+                            for label, ours in images.items()), flush=True)
 
 
 def report(rows: list[dict], args) -> None:
@@ -253,6 +274,11 @@ def main(argv=None) -> int:
     ap.add_argument("--ratios", action="store_true", help="region-mean ratios to Mitsuba 3 instead of timings")
     ap.add_argument("--mitsuba-spp", type=integer(1), default=None,
                     help="with --ratios: Mitsuba 3's samples per pixel (default --spp)")
+    ap.add_argument("--relmse", action="store_true",
+                    help="with --ratios: also relMSE against Mitsuba 3's seed-0 image of the harness's pixel-area "
+                         "and pixel-centre references and of Mitsuba 3's seed-1 image (its seed-to-seed noise)")
+    ap.add_argument("--mitsuba-variant", default="scalar_rgb",
+                    help="Mitsuba 3 variant (llvm_ad_rgb needs DRJIT_LIBLLVM_PATH to a working libLLVM)")
     ap.add_argument("--threads", type=integer(1, numba.config.NUMBA_NUM_THREADS), nargs="+", default=None,
                     help="time our path tracer with each of these Numba thread counts")
     args = ap.parse_args(argv)

@@ -42,7 +42,7 @@ from harness.scene import (
     read_texture,
     srgb_to_linear,
 )
-from harness.specs import TASKS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
+from harness.specs import TASKS, TIERS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
 from harness.threads import compute_threads
 from harness.transforms import rotation, translation
 
@@ -80,6 +80,7 @@ __all__ = [
     "StageTimedFilter",
     "Sun",
     "TASKS",
+    "TIERS",
     "TriangleSoup",
     "__version__",
     "available_backends",

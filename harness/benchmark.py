@@ -33,6 +33,7 @@ def run_benchmark(
     task: str = "all",
     scenes: Iterable[str] | None = None,
     scene_dirs: Iterable[str | Path] = (),
+    scene_roots: Iterable[str | Path] = (),
     filters: Iterable[str] | None = None,
     metrics: Iterable[str] | None = None,
     renderer: str | None = None,
@@ -65,6 +66,8 @@ def run_benchmark(
     progress: bool = False,
     on_plan: Callable[[Plan, list], None] | None = None,
     on_executor: Callable[[Any], None] | None = None,
+    renderer_settings: Mapping[str, Mapping[str, Any]] | None = None,
+    on_note: Callable[[str], None] | None = None,
 ) -> RunOutcome:
     """Plan and run a benchmark; store its results in ``out`` and return them.
 
@@ -81,6 +84,9 @@ def run_benchmark(
     task : {"denoise", "antialias", "all"}
     scenes, scene_dirs
         Registered scene names (default: the suite of the tasks) and scene folders.
+    scene_roots : iterable of path
+        Folders of scene folders (``--scene-root``): each sub-folder a plugin opens joins the run,
+        like ``scene_dirs``, in the ``real`` tier, at the profile's ``real_resolution``.
     filters, metrics
         Names (default: every filter serving the tasks, every metric).
     renderer : str, optional
@@ -111,6 +117,12 @@ def run_benchmark(
         estimate's ``announcement``).
     on_executor : callable, optional
         Called with the executor once it is started (e.g. to print where it runs).
+    renderer_settings : mapping, optional
+        Renderer name -> keyword arguments of its factory (``--renderer-option``), recorded in
+        ``plan.settings["renderer_settings"]``.
+    on_note : callable, optional
+        Called with each one-line note of the scene selection (sub-folders of a root that no
+        plugin opens).
 
     Returns
     -------
@@ -125,10 +137,17 @@ def run_benchmark(
         reference_spp=reference_spp, reference_target=reference_target, repeats=repeats,
         timing=tuple(timing_at) if timing_at is not None else None, timing_scene=timing_scene,
     )
-    store = RenderStore(registry, Cache(cache_dir, enabled=use_cache).check(), resolution=chosen.resolution)
-    specs = scene_selection(registry, store, list(scenes) if scenes is not None else None, list(scene_dirs), tasks)
     filters = list(filters) if filters is not None else sorted(
         n for n, s in registry.filters.items() if s.tasks & set(tasks))
+    _check_filters(registry, filters, params or {})
+    store = RenderStore(registry, Cache(cache_dir, enabled=use_cache).check(), resolution=chosen.resolution,
+                        renderer_settings=dict(renderer_settings or {}))
+    notes: list = []
+    specs = scene_selection(registry, store, list(scenes) if scenes is not None else None, list(scene_dirs), tasks,
+                            scene_roots=list(scene_roots), real_resolution=chosen.real_resolution, notes=notes)
+    for line in notes:
+        if on_note is not None:
+            on_note(line)
     metrics = list(metrics) if metrics is not None else sorted(registry.metrics)
     plan = make_plan(
         registry, store, specs, filters, metrics, tasks=tasks, renderer=renderer, backends=list(backends),
@@ -138,6 +157,9 @@ def run_benchmark(
         timing_resolutions=chosen.timing, timing_scene=chosen.timing_scene, grid=dict(grid or {}),
     )
     plan.settings["profile"] = {**chosen.as_dict(), "name": profile}
+    plan.settings["tiers"] = {s.name: s.tier for s in specs}
+    plan.settings["renderer_settings"] = {name: store.renderer_settings(name)
+                                          for name in sorted({g.renderer for g in plan.groups})}
     copies = 1 if getattr(executor, "name", executor) == "inline" else 3  # the group's inputs in a worker too
     plan.settings["estimate"] = check_plan(plan, store, copies=copies, max_hours=max_hours)
     if on_plan is not None:
@@ -155,3 +177,12 @@ def run_benchmark(
                            report_frames=report_frames, save_outputs=save_outputs, progress=progress)
     outcome.plan, outcome.store = plan, store
     return outcome
+
+
+def _check_filters(registry, filters, params) -> None:
+    """Named filters and their parameters, checked before any scene is opened (opening scene folders
+    takes seconds); the planner checks everything again."""
+    for name in filters:
+        registry.get("filter", name)
+    for name, values in params.items():
+        registry.get("filter", name).check_params(values)

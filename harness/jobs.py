@@ -271,8 +271,9 @@ def _row(job: Job, inputs: GroupInputs, t: int, frame, status: str, message: str
     if samples == -1 and frame is not None and status == "ok":
         samples = job.spp * h * w
     return Row(
-        job_id=job.job_id, task=job.task, scene=job.scene, scene_hash=job.scene_hash, renderer=job.renderer,
-        filter=job.filter, preset=job.preset, params=job.params, backend=job.backend, spp=job.spp, seed=job.seed,
+        job_id=job.job_id, task=job.task, scene=job.scene, scene_hash=job.scene_hash, tier=job.tier,
+        renderer=job.renderer, filter=job.filter, preset=job.preset, params=job.params, backend=job.backend,
+        spp=job.spp, seed=job.seed,
         frame=t, width=w, height=h, status=status, message=message, notes=notes, samples_used=samples,
         compile_ms=timing.get("compile_ms", math.nan), ms_median=timing.get("ms_median", math.nan),
         ms_min=timing.get("ms_min", math.nan), ms_max=timing.get("ms_max", math.nan),
@@ -287,7 +288,7 @@ def _row(job: Job, inputs: GroupInputs, t: int, frame, status: str, message: str
 
 def job_error_rows(job: Job, message: str, frame: int = -1) -> list[Row]:
     """The one ``error`` row of a job that could not run (render failure, crash, timeout)."""
-    return [Row(job_id=job.job_id, task=job.task, scene=job.scene, scene_hash=job.scene_hash,
+    return [Row(job_id=job.job_id, task=job.task, scene=job.scene, scene_hash=job.scene_hash, tier=job.tier,
                 renderer=job.renderer, filter=job.filter, preset=job.preset, params=job.params,
                 backend=job.backend, spp=job.spp, seed=job.seed, frame=frame, width=job.width, height=job.height,
                 status="error", message=message, reference_spp=job.reference_spp)]
@@ -295,7 +296,7 @@ def job_error_rows(job: Job, message: str, frame: int = -1) -> list[Row]:
 
 def skipped_row(job: Job, reason: str) -> Row:
     """The ``skipped`` row of a job the planner could not pair."""
-    return Row(job_id=job.job_id, task=job.task, scene=job.scene, scene_hash=job.scene_hash,
+    return Row(job_id=job.job_id, task=job.task, scene=job.scene, scene_hash=job.scene_hash, tier=job.tier,
                renderer=job.renderer, filter=job.filter, preset=job.preset, params=job.params,
                backend=job.backend, spp=job.spp, seed=job.seed, status="skipped", message=reason,
                reference_spp=job.reference_spp)

@@ -72,10 +72,13 @@ class Job:
     reference_target: float = 0.0  # median relative standard error the reference stops at (0: fixed spp)
     emitters: str = "exclude"  # emitter pixels in the error metrics: "exclude" or "include"
     timing: tuple = ()  # (width, height) the filter is also timed at (real resolutions), on this job
+    tier: str = ""  # the scene's tier (SceneSpec.tier): a function of the scene, so not part of the id
 
     @property
     def job_id(self) -> str:
-        return make_key(**asdict(self))[:20]
+        identity = asdict(self)
+        del identity["tier"]
+        return make_key(**identity)[:20]
 
     @property
     def param_dict(self) -> dict:
@@ -432,7 +435,7 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
                                                                     configured[fspec.name]):
                     job = Job(task, scene_spec.name, rname or "", fspec.name, backend,
                               json.dumps(plain(fparams), sort_keys=True), preset, int(s), int(seed),
-                              filter_version=fspec.version, **identity)
+                              filter_version=fspec.version, tier=scene_spec.tier, **identity)
                     reason = _skip_reason(scene_spec, task, rname, rspec, fspec, backend)
                     if reason:
                         plan.skipped.append((job, reason))

@@ -9,11 +9,13 @@ the profile's value, and the manifest records the profile with the values actual
     A newcomer's first run: every scene at its own small resolution, sequences cut to their
     first 8 frames, 3 seeds, references of 256 samples per pixel (with their variance, so the
     errors are bias-corrected and the noise floor is on every row), timings at 1280x720 and
-    1920x1080 on ``atrium``. A few minutes on 2 cores with an empty cache.
+    1920x1080 on ``atrium``; the ``real`` tier (scene folders of ``$DENOISE_SCENES`` or
+    ``../shared/scenes``, where there are any) at ``real_resolution``. Minutes on 2 cores with an
+    empty cache (README).
 ``paper``
-    The scale of the source paper: 1280x720, full sequences, 5 seeds, references rendered to a
-    median relative standard error of 1% or 4096 samples per pixel, 5 timed calls per frame.
-    Days on 2 cores (docs/paper-comparison.md lists what a slice of it costs).
+    The scale of the source paper: 1280x720 (both tiers), full sequences, 5 seeds, references
+    rendered to a median relative standard error of 1% or 4096 samples per pixel, 5 timed calls
+    per frame. Days on 2 cores (docs/paper-comparison.md lists what a slice of it costs).
 """
 
 from __future__ import annotations
@@ -47,6 +49,9 @@ class Profile:
         Real resolutions filters are timed at (:data:`harness.rows.REAL_RESOLUTIONS`).
     timing_scene : str
         The scene those timings are taken on (where it is selected and serves the task).
+    real_resolution : (width, height) or None
+        Resolution of the ``real`` tier's scene folders where ``resolution`` is None (their
+        films are usually 1280x720 or more; None: each folder's own).
     """
 
     name: str
@@ -59,6 +64,7 @@ class Profile:
     repeats: int = 3
     timing: tuple = REAL_RESOLUTIONS
     timing_scene: str = "atrium"
+    real_resolution: tuple | None = None
 
     def with_overrides(self, **values) -> Profile:
         """This profile with the given fields replaced (values None are ignored)."""
@@ -68,6 +74,8 @@ class Profile:
         """Plain JSON-able values (for the manifest and the listing)."""
         out = asdict(self)
         out["resolution"] = f"{self.resolution[0]}x{self.resolution[1]}" if self.resolution else None
+        out["real_resolution"] = (f"{self.real_resolution[0]}x{self.real_resolution[1]}" if self.real_resolution
+                                  else None)
         out["seeds"] = list(self.seeds)
         out["timing"] = [f"{w}x{h}" for w, h in self.timing]
         return out
@@ -76,15 +84,18 @@ class Profile:
 PROFILES: dict[str, Profile] = {
     "quick": Profile(
         name="quick",
-        description="first look in a few minutes on 2 cores: scene resolutions, 8 frames, 3 seeds, 256-spp references",
+        description="first look in minutes on 2 cores: scene resolutions (real tier 128x72), 8 frames, 3 seeds, "
+                    "256-spp references",
         frames=8,
         seeds=(0, 1, 2),
         reference_spp=256,
         repeats=3,
+        real_resolution=(128, 72),
     ),
     "paper": Profile(
         name="paper",
-        description="the source paper's scale: 1280x720, full sequences, 5 seeds, references to 1% or 4096 spp",
+        description="the source paper's scale: 1280x720 (both tiers), full sequences, 5 seeds, references to 1% or "
+                    "4096 spp",
         resolution=(1280, 720),
         seeds=(0, 1, 2, 3, 4),
         reference_spp=4096,

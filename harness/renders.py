@@ -8,6 +8,8 @@ and :meth:`RenderStore.reference` (chunked and resumable where the renderer decl
 
 from __future__ import annotations
 
+import dataclasses
+import os
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -283,10 +285,75 @@ def _valid_image(array, resolution, dtype=np.float32) -> bool:
     return isinstance(array, np.ndarray) and array.shape == (h, w, 3) and array.dtype == dtype
 
 
-def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), tasks=None) -> list:
+#: environment variable naming a folder of scene folders: the ``real`` tier of a default run
+SCENES_ENV = "DENOISE_SCENES"
+
+
+def default_scene_root() -> Path | None:
+    """Where the ``real`` tier's scene folders are when the user names none.
+
+    ``$DENOISE_SCENES`` where set (it must then be a folder), else ``../shared/scenes`` relative to
+    the working directory or to the project root (the third-party scenes kept beside a checkout),
+    else None.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``$DENOISE_SCENES`` names no folder.
+    """
+    named = os.environ.get(SCENES_ENV, "").strip()
+    if named:
+        root = Path(named).expanduser()
+        if not root.is_dir():
+            raise FileNotFoundError(f"${SCENES_ENV} is {named!r}, which is not a folder")
+        return root
+    project = Path(__file__).resolve().parents[1]
+    for base in (Path.cwd(), project):
+        root = base.parent / "shared" / "scenes"
+        if root.is_dir():
+            return root
+    return None
+
+
+def folders_of_root(registry, root) -> tuple[list, list[str]]:
+    """The scenes in the sub-folders of ``root`` that a plugin opens, in name order, and one line per
+    sub-folder that none opens (why)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"scene root {root} is not a folder")
+    opened, skipped = [], []
+    for folder in sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")):
+        try:
+            opened.append((folder, registry.open_scene(folder)))
+        except ValueError as exc:
+            skipped.append(f"{folder.name}: {exc}")
+    return opened, skipped
+
+
+def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), tasks=None, *, scene_roots=(),
+                    real_resolution=None, notes: list | None = None) -> list:
     """Scene specs of ``scenes`` (default: the suite scenes of the tasks) plus folders opened as scenes.
 
-    Folders are opened through the plugins' ``open_scene`` hook and added to ``store``.
+    Folders (``scene_dirs``, and every sub-folder of each of ``scene_roots`` that a plugin opens)
+    are opened through the plugins' ``open_scene`` hook, added to ``store`` and join the ``real``
+    tier (unless the scene declares another in ``params["tier"]``). The suite is the default of
+    ``scenes`` unless ``scene_dirs`` are named: a scene root's folders join the suite (the two
+    tiers of a default run), a ``--scene-dir`` run scores its folders alone.
+
+    Parameters
+    ----------
+    registry : harness.Registry
+    store : RenderStore
+    scenes : list of str, optional
+    scene_dirs : list of path
+    tasks : list of str, optional
+    scene_roots : list of path
+        Folders of scene folders (``--scene-root``, ``$DENOISE_SCENES``).
+    real_resolution : (width, height), optional
+        Resolution of the folder scenes that can be rendered at any size (not captures), where the
+        store has no resolution override of its own (a profile's size of the real tier).
+    notes : list, optional
+        Receives one line per sub-folder of a root that no plugin opens.
     """
     from harness.specs import TASKS, SceneSpec
 
@@ -295,8 +362,15 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
         specs = [s for _, s in sorted(registry.scenes.items()) if s.suite and s.tasks & tasks]
     else:
         specs = [registry.get("scene", n) for n in (scenes or [])]
-    for folder in scene_dirs:
-        scene = registry.open_scene(folder)
+    opened = [(Path(folder), registry.open_scene(folder)) for folder in scene_dirs]
+    for root in scene_roots:
+        found, skipped = folders_of_root(registry, root)
+        opened += found
+        if notes is not None:
+            notes += [f"scene root {root}: skipped {line}" for line in skipped]
+    for folder, scene in opened:
+        if real_resolution is not None and scene.kind != "captured":
+            scene = dataclasses.replace(scene, resolution=tuple(real_resolution))
         store.add_scene(scene, path=folder)
         specs.append(
             SceneSpec(
@@ -310,6 +384,7 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
                 suite=False,
                 tasks=scene.params.get("tasks") or {"denoise"},
                 channels=scene.channels,
+                tier=scene.params.get("tier") or "real",
             )
         )
     if not specs:
@@ -321,5 +396,6 @@ def scene_selection(registry, store: RenderStore, scenes=None, scene_dirs=(), ta
     return specs
 
 
-__all__ = ["DEFAULT_CHUNK", "REFERENCE_SEED", "RenderStore", "scene_selection"]
+__all__ = ["DEFAULT_CHUNK", "REFERENCE_SEED", "SCENES_ENV", "RenderStore", "default_scene_root", "folders_of_root",
+           "scene_selection"]
 

@@ -3,7 +3,9 @@
 The columns of a results table are defined once, in :mod:`harness.rows` (``Row``). The
 leaderboard ranks entries by one metric (:data:`RANK_BY` by default), with 95% intervals and
 paired tests between neighbours (:mod:`harness.statistics`, docs/statistics.md), and shows the
-filters' times at real resolutions.
+filters' times at real resolutions. A table with scenes of both tiers (``procedural``, ``real``)
+gets one leaderboard per tier (:func:`tier_boards`) and the rank agreement between them, Kendall's
+tau per metric (:func:`rank_agreement`).
 """
 
 from __future__ import annotations
@@ -18,7 +20,8 @@ import pandas as pd
 
 from harness.cache import atomic_write_bytes
 from harness.rows import PER_FRAME_SUFFIX, REAL_RESOLUTIONS, combine, metric_columns, timing_column
-from harness.statistics import CELL_KEYS, RESAMPLES, interval, paired
+from harness.specs import TIERS
+from harness.statistics import CELL_KEYS, RESAMPLES, interval, kendall_tau, paired
 
 #: the metric leaderboards rank by when it is scored (display-referred, comparable to the paper's RMSE)
 RANK_BY = "display_rmse"
@@ -46,14 +49,14 @@ def read_results(out_dir: str | Path) -> pd.DataFrame:
 
 
 def summary(df: pd.DataFrame) -> pd.DataFrame:
-    """Per (task, scene, filter, preset, backend, spp): metric means over frames and seeds, times, statuses.
+    """Per (task, tier, scene, filter, preset, backend, spp): metric means over frames and seeds, times, statuses.
 
     ``ms_median`` is the median per-frame time at the scene's (quality) resolution;
     ``ms_1280x720`` and ``ms_1920x1080`` the real-resolution timings where this scene was the
     timing scene; ``reference_noise`` the mean noise floor of its references.
     """
     metrics = metric_columns(df)
-    keys = ["task", "scene", "filter", "preset", "backend", "spp"]
+    keys = ["task", "tier", "scene", "filter", "preset", "backend", "spp"]
     rows = []
     for key, g in df.groupby(keys, sort=True, dropna=False):
         ok = g[g.status == "ok"]
@@ -124,6 +127,60 @@ def column_spec(metric_specs: dict, column: str):
     if column.endswith(PER_FRAME_SUFFIX):
         return metric_specs.get(column[: -len(PER_FRAME_SUFFIX)])
     return None
+
+
+def tiers(df: pd.DataFrame) -> list[str]:
+    """The tiers of a table's ``ok`` rows, in :data:`harness.TIERS` order ("" for rows stored without one, last)."""
+    present = set(df.loc[df.status == "ok", "tier"]) if "tier" in df and len(df) else set()
+    return [t for t in TIERS if t in present] + sorted(present - set(TIERS))
+
+
+def tier_boards(df: pd.DataFrame, metric_specs: dict,
+                rank_by: str | None = None) -> list[tuple[str, str, pd.DataFrame]]:
+    """``(task, tier, board)``: the :func:`leaderboard` of each tier of each task, tiers in :func:`tiers` order.
+
+    Each board ranks by the metric the whole table ranks by, and keeps :func:`leaderboard`'s
+    attributes (``rank_by``, ``higher_is_better``) without its ``task`` column.
+    """
+    ok = df[df.status == "ok"]
+    metrics = [m for m in metric_columns(df) if ok[m].notna().any()]
+    if ok.empty or not metrics:
+        return []
+    rank_by = rank_metric(metrics, rank_by)
+    out = []
+    for tier in tiers(df):
+        board = leaderboard(df[df["tier"] == tier], metric_specs, rank_by)
+        for task, part in board.groupby("task", sort=True) if not board.empty else ():
+            part = part.drop(columns="task").reset_index(drop=True)
+            part.attrs.update(board.attrs)
+            out.append((task, tier, part))
+    order = {t: k for k, t in enumerate(sorted({task for task, _, _ in out}))}
+    return sorted(out, key=lambda item: order[item[0]])
+
+
+def rank_agreement(boards: list[tuple[str, str, pd.DataFrame]]) -> pd.DataFrame:
+    """Kendall's tau-b between the tiers' rankings, per task and metric.
+
+    For each task with boards of at least two tiers (``boards``: :func:`tier_boards`), each pair
+    of tiers and each metric: ``tau`` of the entries' scores on the two tiers' leaderboards (the
+    same direction on both, so tau of scores is tau of ranks), over the entries scored on both
+    (``filters``: how many; tau needs 2). Rows: ``task``, ``tiers`` ("procedural vs real"),
+    ``metric``, ``tau``, ``filters``. Empty for a table of one tier.
+    """
+    rows = []
+    for task in sorted({task for task, _, _ in boards}):
+        mine = [(tier, board) for t, tier, board in boards if t == task]
+        for a in range(len(mine)):
+            for b in range(a + 1, len(mine)):
+                (tier_a, first), (tier_b, second) = mine[a], mine[b]
+                both = first.merge(second, on="entry", suffixes=("_a", "_b"))
+                metrics = [c[: -len("_lo")] for c in first.columns if c.endswith("_lo") and c[:-3] in second]
+                for metric in metrics:
+                    pairs = both[[f"{metric}_a", f"{metric}_b"]].dropna()
+                    rows.append({"task": task, "tiers": f"{tier_a or 'unrecorded'} vs {tier_b or 'unrecorded'}",
+                                 "metric": metric, "tau": kendall_tau(pairs.iloc[:, 0], pairs.iloc[:, 1]),
+                                 "filters": len(pairs)})
+    return pd.DataFrame(rows, columns=["task", "tiers", "metric", "tau", "filters"])
 
 
 def leaderboard(df: pd.DataFrame, metric_specs: dict, rank_by: str | None = None) -> pd.DataFrame:

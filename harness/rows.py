@@ -9,6 +9,8 @@ column is one field here.
 ``job_id``                digest of every input of the job (see :class:`harness.plan.Job`)
 ``task``                  ``denoise`` or ``antialias``
 ``scene``, ``scene_hash`` scene name and content hash
+``tier``                  the scene's tier: ``procedural`` (built here) or ``real`` (third-party content);
+                          leaderboards rank each tier on its own
 ``renderer``              renderer name
 ``filter``, ``preset``    filter name and named preset ("" for defaults)
 ``params``                JSON of the filter parameters actually used
@@ -68,6 +70,7 @@ class Row:
     task: str = _col("str")
     scene: str = _col("str")
     scene_hash: str = _col("str")
+    tier: str = _col("str")
     renderer: str = _col("str")
     filter: str = _col("str")
     preset: str = _col("str")

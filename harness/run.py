@@ -217,6 +217,9 @@ class _Run:
         for job in group.jobs:
             table = _read(stored.get(job.job_id))
             if table is not None:
+                if "tier" not in table or (table["tier"] != job.tier).any():  # stored before rows had tiers
+                    table["tier"] = job.tier  # a function of the scene, not part of the job's id
+                    self._store(job.job_id, table, final=False)
                 with self._lock:
                     self.tables[job.job_id] = table
                     self.reused += 1

@@ -193,6 +193,15 @@ class CameraPath:
         Vertical field of view, degrees.
     near, far : float
         Clip distances used for projection matrices.
+    ups : ndarray (F, 3) or None
+        Up vector per frame (an animated roll); None: ``up`` on every frame. When given,
+        ``up`` is set to its first row.
+    fovs : ndarray (F,) or None
+        Vertical field of view per frame, degrees (an animated zoom); None: ``fov`` on every
+        frame. When given, ``fov`` is set to its first value.
+
+    Every per-frame array repeats its last row past its end. Use :meth:`up_at` and
+    :meth:`fov_at` for a frame's values.
     """
 
     positions: np.ndarray
@@ -201,12 +210,24 @@ class CameraPath:
     fov: float = 45.0
     near: float = 0.01
     far: float = 1000.0
+    ups: np.ndarray | None = None
+    fovs: np.ndarray | None = None
 
     def __post_init__(self):
         self.positions = np.atleast_2d(np.asarray(self.positions, np.float64))
         self.targets = np.atleast_2d(np.asarray(self.targets, np.float64))
         if self.positions.shape[1] != 3 or self.targets.shape[1] != 3:
             raise ValueError("camera positions and targets must be (F, 3)")
+        if self.ups is not None:
+            self.ups = np.atleast_2d(np.asarray(self.ups, np.float64))
+            if self.ups.shape[1] != 3 or len(self.ups) == 0:
+                raise ValueError("camera ups must be (F, 3)")
+            self.up = tuple(float(v) for v in self.ups[0])
+        if self.fovs is not None:
+            self.fovs = np.atleast_1d(np.asarray(self.fovs, np.float64)).ravel()
+            if len(self.fovs) == 0 or not ((self.fovs > 0) & (self.fovs < 180)).all():
+                raise ValueError("camera fovs must be degrees in (0, 180)")
+            self.fov = float(self.fovs[0])
 
     def _row(self, array: np.ndarray, frame: int) -> np.ndarray:
         return array[min(frame, len(array) - 1)]
@@ -214,12 +235,20 @@ class CameraPath:
     def eye(self, frame: int) -> np.ndarray:
         return self._row(self.positions, frame)
 
+    def up_at(self, frame: int) -> np.ndarray:
+        """The up vector of ``frame`` (not orthogonalised; :meth:`basis` does that)."""
+        return np.asarray(self.up, float) if self.ups is None else self._row(self.ups, frame)
+
+    def fov_at(self, frame: int) -> float:
+        """The vertical field of view of ``frame``, degrees."""
+        return float(self.fov) if self.fovs is None else float(self._row(self.fovs, frame))
+
     def basis(self, frame: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Camera (right, up, forward) unit vectors in world space for ``frame``."""
         eye = self.eye(frame)
         forward = self._row(self.targets, frame) - eye
         forward = forward / max(np.linalg.norm(forward), 1e-12)
-        right = np.cross(forward, np.asarray(self.up, float))
+        right = np.cross(forward, self.up_at(frame))
         if np.linalg.norm(right) < 1e-9:
             right = np.cross(forward, np.array([0.0, 0.0, 1.0]))
         right /= np.linalg.norm(right)
@@ -235,13 +264,13 @@ class CameraPath:
         m[:3, 3] = -m[:3, :3] @ eye
         return m
 
-    def projection_matrix(self, width: int, height: int, jitter=(0.0, 0.0)) -> np.ndarray:
-        """OpenGL perspective matrix.
+    def projection_matrix(self, width: int, height: int, jitter=(0.0, 0.0), frame: int | None = None) -> np.ndarray:
+        """OpenGL perspective matrix (of ``frame``'s field of view; ``fov`` where None).
 
         With ``jitter`` the pixel centres sample image coordinates shifted by it (x right, y down),
         as :meth:`primary_rays` does.
         """
-        f = 1.0 / np.tan(np.radians(self.fov) / 2.0)
+        f = 1.0 / np.tan(np.radians(self.fov if frame is None else self.fov_at(frame)) / 2.0)
         aspect = width / height
         n, fa = self.near, self.far
         p = np.zeros((4, 4))
@@ -256,7 +285,7 @@ class CameraPath:
 
     def view_projection(self, frame: int, width: int, height: int, jitter=(0.0, 0.0)) -> np.ndarray:
         """World-to-clip matrix of ``frame``."""
-        return self.projection_matrix(width, height, jitter) @ self.view_matrix(frame)
+        return self.projection_matrix(width, height, jitter, frame) @ self.view_matrix(frame)
 
     def project(self, points: np.ndarray, frame: int, width: int, height: int, jitter=(0.0, 0.0)) -> np.ndarray:
         """Image coordinates (..., 2) of world ``points`` (..., 3) as seen in ``frame``.
@@ -284,7 +313,7 @@ class CameraPath:
         with pixel centres on integer coordinates, matching :meth:`view_projection`.
         """
         right, up, forward = self.basis(frame)
-        t = np.tan(np.radians(self.fov) / 2.0)
+        t = np.tan(np.radians(self.fov_at(frame)) / 2.0)
         xs = (np.arange(width) + 0.5 + jitter[0]) / width * 2.0 - 1.0
         ys = 1.0 - (np.arange(height) + 0.5 + jitter[1]) / height * 2.0
         sx = xs[None, :] * t * (width / height)
@@ -430,6 +459,10 @@ class Scene:
                 for a in (self.camera.positions, self.camera.targets):
                     h.update(np.ascontiguousarray(a, np.float64).tobytes())
                 h.update(json.dumps([self.camera.up, self.camera.fov, self.camera.near, self.camera.far]).encode())
+                for name in ("ups", "fovs"):  # animated roll and zoom (absent from static cameras' hashes)
+                    if getattr(self.camera, name) is not None:
+                        h.update(name.encode())
+                        h.update(np.ascontiguousarray(getattr(self.camera, name), np.float64).tobytes())
             for obj in self.objects:
                 h.update(obj.name.encode())
                 h.update(str(obj.material).encode())

@@ -20,6 +20,8 @@ METRIC_INPUTS = ("reference_variance", "mask")
 #: the benchmark tasks: ``denoise`` (1-spp path-traced input, converged path-traced reference) and
 #: ``antialias`` (one jittered shading sample per pixel, supersampled reference)
 TASKS = ("denoise", "antialias")
+#: scene tiers: content built by this project, and third-party content (DESIGN.md, "Tiers and guides")
+TIERS = ("procedural", "real")
 
 
 def _check_tasks(owner: str, tasks) -> frozenset[str]:
@@ -81,8 +83,10 @@ class FilterSpec:
         Conformance checks (``harness.testing.checks`` function names) this filter knowingly
         fails, each with the reason; they run as strict expected failures.
     trainer : callable, optional
-        For learned filters: ``trainer(seed=0, output=None, quick=False) -> pathlib.Path``
-        trains the model and writes its weights (``denoise-bench train NAME``).
+        For learned filters: ``trainer(seed=0, output=None, quick=False, **options) -> pathlib.Path``
+        trains the model and writes its weights (``denoise-bench train NAME [-o KEY=VALUE ...]``);
+        ``options`` are the trainer's own (a trainer without them need not accept any; an unknown
+        one is a ``ValueError``).
     stage_timing : bool
         True if the filter object sets ``stage_ms`` (dict of stage name to milliseconds of the
         last call; see :class:`harness.protocols.StageTimedFilter`); the harness stores it with
@@ -336,6 +340,10 @@ class SceneSpec:
     channels : iterable of str, optional
         The channels the scene can give where it limits its renderer (captured frames); None
         means whatever the renderer provides. A filter needing another is skipped with a reason.
+    tier : {"procedural", "real"}
+        ``procedural``: content built by this project (the built-in scenes); ``real``: third-party
+        content (Mitsuba scene folders, captures a user names). Leaderboards rank each tier on its
+        own (:data:`TIERS`).
     """
 
     name: str
@@ -349,8 +357,11 @@ class SceneSpec:
     description: str = ""
     tasks: frozenset = frozenset({"denoise"})
     channels: frozenset | None = None
+    tier: str = "procedural"
 
     def __post_init__(self):
+        if self.tier not in TIERS:
+            raise ValueError(f"scene {self.name!r}: tier must be one of {TIERS}, got {self.tier!r}")
         object.__setattr__(self, "tags", frozenset(self.tags))
         if self.channels is not None:
             object.__setattr__(self, "channels", _check_channels(f"scene {self.name!r}", self.channels))
@@ -367,4 +378,5 @@ class SceneSpec:
             "kind": self.kind,
             "suite": self.suite,
             "tasks": sorted(self.tasks),
+            "tier": self.tier,
         }

@@ -20,6 +20,12 @@ excludes 0.
 
 With one seed the interval reflects the frames only; with one seed and one frame it is a
 point (the table says so with ``cells``).
+
+**Rank agreement.** How far two rankings of the same entries agree (the ``procedural`` and
+``real`` tiers' leaderboards): Kendall's tau-b of their scores, ``(C - D) / sqrt((C + D + T_x)
+(C + D + T_y))`` over the pairs of entries, with ``C`` concordant and ``D`` discordant pairs and
+``T_x``, ``T_y`` the pairs tied in one ranking only (Kendall 1945); 1 is the same order, -1 the
+reverse, 0 no relation.
 """
 
 from __future__ import annotations
@@ -126,5 +132,25 @@ def paired(first: pd.DataFrame, second: pd.DataFrame) -> Comparison:
     return Comparison(score(both, "diff"), float(low), float(high), min(p, 1.0), len(both))
 
 
+def kendall_tau(x, y) -> float:
+    """Kendall's tau-b of two paired sequences of scores (NaN pairs dropped; NaN with fewer than two
+    pairs, or where one sequence is constant)."""
+    x = np.asarray(x, np.float64)
+    y = np.asarray(y, np.float64)
+    if x.shape != y.shape or x.ndim != 1:
+        raise ValueError(f"kendall_tau needs two sequences of the same length, got shapes {x.shape} and {y.shape}")
+    keep = np.isfinite(x) & np.isfinite(y)
+    x, y = x[keep], y[keep]
+    if len(x) < 2:
+        return math.nan
+    i, j = np.triu_indices(len(x), k=1)
+    dx, dy = np.sign(x[i] - x[j]), np.sign(y[i] - y[j])
+    both = float(np.sum(dx * dy))  # concordant minus discordant
+    untied_x, untied_y = float(np.sum(dx != 0)), float(np.sum(dy != 0))
+    if untied_x == 0.0 or untied_y == 0.0:
+        return math.nan
+    return both / math.sqrt(untied_x * untied_y)
+
+
 __all__ = ["BOOTSTRAP_SEED", "CELL_KEYS", "CONFIDENCE", "RESAMPLES", "Comparison", "Interval", "bootstrap_scores",
-           "interval", "paired", "score"]
+           "interval", "kendall_tau", "paired", "score"]

@@ -94,3 +94,42 @@ def test_single_seed_single_frame_gives_points_not_intervals():
     assert (b.display_rmse_lo == b.display_rmse).all() and (b.display_rmse_hi == b.display_rmse).all()
     assert b.vs_next[0] == "one common cell: no test"
     assert isinstance(b, pd.DataFrame)
+
+
+def tiered(levels: dict, tier: str, scenes) -> list:
+    """Rows of every filter at its level, on ``scenes`` of one tier."""
+    out = []
+    for k, (name, level) in enumerate(levels.items()):
+        for r in rows(name, level, spread=0.002, seed=k, scenes=scenes, seeds=(0, 1), frames=2):
+            r["tier"] = tier
+            out.append(r)
+    return out
+
+
+def test_each_tier_is_ranked_on_its_own_with_kendall_tau_between_them():
+    from harness.results import rank_agreement, tier_boards
+
+    # display_rmse, procedural: a < b < c < d; real: b < a < d < c. Pairs of the 4 filters: (a,b) and
+    # (c,d) reversed, the other 4 in the same order: tau = (4 - 2) / 6 = 1/3
+    procedural = {"a": 0.10, "b": 0.20, "c": 0.30, "d": 0.40}
+    real = {"a": 0.25, "b": 0.15, "c": 0.60, "d": 0.50}
+    table = make_table(tiered(procedural, "procedural", ("p1", "p2")) + tiered(real, "real", ("r1",)))
+    boards = tier_boards(table, SPECS)
+    assert [(task, tier) for task, tier, _ in boards] == [("denoise", "procedural"), ("denoise", "real")]
+    ranked = {tier: [e.split("/")[0] for e in b.entry] for _, tier, b in boards}
+    assert ranked == {"procedural": ["a", "b", "c", "d"], "real": ["b", "a", "d", "c"]}
+    assert list(boards[1][2].scenes) == [1, 1, 1, 1] and boards[0][2].attrs["rank_by"] == "display_rmse"
+    agreement = rank_agreement(boards).set_index("metric")
+    assert agreement.loc["display_rmse", "tau"] == pytest.approx(1 / 3)
+    assert agreement.loc["ssim", "tau"] == pytest.approx(1 / 3)  # 1 - display_rmse: the same orders
+    assert agreement.loc["display_rmse", "filters"] == 4
+    assert set(agreement.tiers) == {"procedural vs real"} and set(agreement.task) == {"denoise"}
+    # a filter scored on one tier only is left out of tau: 3 common filters, (a, b) reversed: (2 - 1) / 3
+    partial = make_table(tiered(procedural, "procedural", ("p1",)) + tiered({k: real[k] for k in "abc"}, "real",
+                                                                            ("r1",)))
+    again = rank_agreement(tier_boards(partial, SPECS)).set_index("metric")
+    assert again.loc["display_rmse", "filters"] == 3 and again.loc["display_rmse", "tau"] == pytest.approx(1 / 3)
+    # one tier: one board per task, no agreement to state
+    single = make_table(tiered(procedural, "procedural", ("p1",)))
+    alone = tier_boards(single, SPECS)
+    assert [tier for _, tier, _ in alone] == ["procedural"] and rank_agreement(alone).empty

@@ -27,7 +27,8 @@ def test_registered_with_its_declarations():
     assert spec.references and spec.adaptive
     assert spec.scene_kinds == frozenset({"mesh"})
     renderer = spec.factory()
-    assert renderer.settings() == {"max_depth": None, "rr_depth": 5, "strategy": "mis"}
+    assert renderer.settings() == {"max_depth": None, "rr_depth": 5, "strategy": "mis", "jitter": False,
+                                   "reference_pixel": "area"}
 
 
 def test_all_channels_valid(box):
@@ -161,7 +162,7 @@ def test_eight_then_eight_more_equals_sixteen(box):
 
 
 def test_adaptive_sampler_counts_and_continues_streams(box):
-    renderer = PathTracer()
+    renderer = PathTracer(reference_pixel="centre")  # accumulate() then continues the noisy frames' streams
     sampler = renderer.sampler(box, 0, spp=2, seed=9)
     extra = np.zeros((16, 20), np.int32)
     extra[3:7, 4:12] = 5
@@ -187,8 +188,9 @@ def test_accumulate_chunks_and_reference_are_consistent(box):
     ref = renderer.reference(box, 0, spp=12, seed=2)
     assert ref.dtype == np.float32 and ref.shape == (16, 20, 3)
     np.testing.assert_array_equal(ref, (whole / 12).astype(np.float32))
-    frame = renderer.render(box, 0, spp=12, seed=2)
-    np.testing.assert_array_equal(frame["color"], ref)
+    centre = PathTracer(reference_pixel="centre")  # pixel-centre references are the noisy frames' samples
+    frame = centre.render(box, 0, spp=12, seed=2)
+    np.testing.assert_array_equal(frame["color"], centre.reference(box, 0, spp=12, seed=2))
 
 
 def test_variance_is_that_of_the_pixel_mean():

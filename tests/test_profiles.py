@@ -12,6 +12,12 @@ from harness.plan import make_plan, timing_group, timing_groups
 from harness.profiles import DEFAULT_PROFILE, PROFILES, get_profile
 from harness.renders import RenderStore
 from tests.test_run import bench
+from tests.test_scene_animation import write_room
+
+
+@pytest.fixture
+def room(tmp_path):
+    return write_room(tmp_path / "room")
 
 
 def test_profiles_are_data_with_the_documented_values():
@@ -88,3 +94,91 @@ def test_paper_profile_with_overrides_renders_references_to_a_target(tmp_path):
     assert (df.reference_spp == 64).all() and (df.reference_error > 0.01).all()
     assert np.isfinite(df.reference_noise).all() and (df.reference_noise > 0).all()
     assert df.ms_1280x720.isna().all()
+
+
+def test_quick_sizes_the_real_tier_and_paper_renders_both_at_1280x720():
+    assert get_profile("quick").real_resolution == (128, 72)
+    paper = get_profile("paper")
+    assert paper.resolution == (1280, 720) and paper.real_resolution is None  # one size for both tiers
+    assert get_profile("quick").as_dict()["real_resolution"] == "128x72"
+
+
+def test_scene_roots_join_the_real_tier_at_the_profile_size(room, tmp_path):
+    from harness.renders import scene_selection
+
+    root = tmp_path / "scenes"
+    root.mkdir()
+    room.rename(root / "room")
+    (root / "notes").mkdir()  # no scene a plugin opens: named in one line, skipped
+    reg = load_plugins()
+    store = RenderStore(reg, Cache(enabled=False))
+    notes = []
+    specs = scene_selection(reg, store, ["synthetic-moving"], scene_roots=[root], real_resolution=(32, 18),
+                            notes=notes)
+    assert [(s.name, s.tier) for s in specs] == [("synthetic-moving", "procedural"), ("room", "real")]
+    assert specs[1].resolution == (32, 18) and store.resolution(store.scene("room")) == (32, 18)
+    assert specs[1].frames == 32 and len(notes) == 1 and "notes" in notes[0] and "\n" not in notes[0]
+    # named no scenes: the root's folders join the suite (both tiers); a --scene-dir run is its folders alone
+    both = scene_selection(reg, store, None, tasks=["denoise"], scene_roots=[root])
+    suite = sorted(n for n, s in reg.scenes.items() if s.suite and "denoise" in s.tasks)
+    assert [s.name for s in both] == [*suite, "room"] and {s.tier for s in both[:-1]} == {"procedural"}
+    alone = scene_selection(reg, store, None, [root / "room"], tasks=["denoise"])
+    assert [s.name for s in alone] == ["room"]
+
+
+def test_the_default_root_is_denoise_scenes_else_the_shared_folder(monkeypatch, tmp_path, capsys):
+    import argparse
+
+    from harness.cli import commands
+    from harness.renders import default_scene_root
+
+    monkeypatch.setenv("DENOISE_SCENES", str(tmp_path))
+    assert default_scene_root() == tmp_path
+    monkeypatch.setenv("DENOISE_SCENES", str(tmp_path / "missing"))
+    with pytest.raises(FileNotFoundError, match="DENOISE_SCENES"):
+        default_scene_root()
+    args = argparse.Namespace(scene_root=[], scenes=None, scene_dir=[])
+    monkeypatch.setattr(commands, "default_scene_root", lambda: None)
+    assert commands._scene_roots(args) == []
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("real tier skipped")
+    monkeypatch.setattr(commands, "default_scene_root", lambda: tmp_path)
+    assert commands._scene_roots(args) == [tmp_path]
+    # a run that names its scenes gets no default real tier
+    assert commands._scene_roots(argparse.Namespace(scene_root=[], scenes=["cornell"], scene_dir=[])) == []
+
+
+@pytest.mark.slow
+def test_a_run_with_both_tiers_ranks_each_and_states_their_agreement(room, tmp_path):
+    out = bench(["run", "--scenes", "synthetic-moving,synthetic-edges", "--scene-dir", room, "--frames", "2",
+                 "--filters", "passthrough,gaussian,opencv_jbf", "--resolution", "24x16", "--seeds", "0,1",
+                 "--reference-spp", "16", "--timing-at", "none", "--quiet", "--out", tmp_path / "o",
+                 "--cache-dir", tmp_path / "c"])
+    df = pd.read_parquet(tmp_path / "o" / "results.parquet")
+    assert dict(df.groupby("scene").tier.first()) == {"room": "real", "synthetic-edges": "procedural",
+                                                      "synthetic-moving": "procedural"}
+    text = out.stdout
+    assert "tier procedural (synthetic-edges, synthetic-moving)" in text and "tier real (room)" in text
+    assert "Rank agreement between the tiers" in text and "procedural vs real" in text
+    manifest = json.loads((tmp_path / "o" / "manifest.json").read_text())
+    assert manifest["settings"]["tiers"]["room"] == "real"
+    assert manifest["settings"]["renderer_settings"]["pathtracer"]["reference_pixel"] == "area"
+    shown = bench(["show", tmp_path / "o", "--markdown", tmp_path / "board.md"]).stdout
+    assert "tier real (room)" in shown and "procedural vs real" in shown
+    markdown = (tmp_path / "board.md").read_text()
+    assert "## Task denoise, tier real" in markdown and "## Rank agreement between the tiers" in markdown
+
+
+def test_renderer_options_are_checked_against_the_factory():
+    import argparse
+
+    from harness.cli import commands
+
+    reg = load_plugins()
+    ok = argparse.Namespace(renderer_option=[("pathtracer", "jitter", True), ("pathtracer", "reference_pixel",
+                                                                               "centre")])
+    assert commands._renderer_settings(reg, ok) == {"pathtracer": {"jitter": True, "reference_pixel": "centre"}}
+    with pytest.raises(ValueError, match=r"renderer 'pathtracer' has no option\(s\) \['speed'\]"):
+        commands._renderer_settings(reg, argparse.Namespace(renderer_option=[("pathtracer", "speed", 2)]))
+    with pytest.raises(KeyError):
+        commands._renderer_settings(reg, argparse.Namespace(renderer_option=[("no-such-renderer", "x", 1)]))

@@ -116,3 +116,24 @@ def test_relmse_map_and_html_helpers():
     html = table(pd.DataFrame({"a<b": ["<script>", 1.5], "n": [float("nan"), 2.0]}))
     assert "&lt;script&gt;" in html and "<script>" not in html and "-" in html
     assert safe_name("eaw/cpu iterations=3 @2spp") == "eaw_cpu_iterations=3_2spp"
+
+
+def test_the_report_ranks_each_tier_and_states_their_agreement():
+    """A table of both tiers: one leaderboard section per tier (its scenes named), then Kendall's tau."""
+    from types import SimpleNamespace
+
+    from harness.report.build import _leaderboards
+    from harness.results import leaderboard
+    from harness.rows import make_table
+    from tests.test_leaderboard import SPECS, tiered
+
+    table = make_table(tiered({"a": 0.1, "b": 0.2, "c": 0.3}, "procedural", ("p1",))
+                       + tiered({"a": 0.3, "b": 0.2, "c": 0.4}, "real", ("r1",)))
+    html = "".join(_leaderboards(table, SimpleNamespace(metrics=SPECS), leaderboard(table, SPECS), None))
+    assert "Leaderboard, task denoise, tier procedural (p1)" in html and "tier real (r1)" in html
+    assert "Rank agreement between the tiers" in html and "procedural vs real" in html
+    # a: 1st then 2nd, b: 2nd then 1st, c: 3rd on both: one pair of three reversed, tau = 1/3
+    assert "0.3333" in html
+    single = make_table(tiered({"a": 0.1, "b": 0.2}, "procedural", ("p1",)))
+    alone = "".join(_leaderboards(single, SimpleNamespace(metrics=SPECS), leaderboard(single, SPECS), None))
+    assert "Leaderboard, task denoise</h2>" in alone and "Rank agreement" not in alone

@@ -70,3 +70,24 @@ def test_paired_uses_only_common_cells_and_is_reproducible():
 def test_a_single_cell_gives_a_point():
     iv = interval(table(np.full((1, 1, 1), 0.25)))
     assert iv.mean == iv.low == iv.high == 0.25 and iv.cells == 1
+
+
+def test_kendall_tau_against_hand_counts_and_scipy():
+    from scipy.stats import kendalltau
+
+    from harness.statistics import kendall_tau
+
+    # [1..5] against [3, 1, 2, 5, 4]: of the 10 pairs, 7 in the same order, 3 reversed: (7 - 3) / 10
+    assert kendall_tau([1, 2, 3, 4, 5], [3, 1, 2, 5, 4]) == pytest.approx(0.4)
+    assert kendall_tau([1, 2, 3, 4], [1, 2, 3, 4]) == 1.0 and kendall_tau([1, 2, 3], [3, 2, 1]) == -1.0
+    # tau-b with ties: x ties (0, 1), y ties (1, 2); 7 concordant, 1 discordant, 9 untied in each: 6 / 9
+    assert kendall_tau([1, 1, 2, 3, 4], [1, 2, 2, 4, 3]) == pytest.approx(2 / 3)
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        x, y = rng.integers(0, 5, 9).astype(float), rng.normal(size=9)
+        assert kendall_tau(x, y) == pytest.approx(kendalltau(x, y)[0], abs=1e-12)
+    # pairs with a NaN are dropped; fewer than two pairs or a constant ranking say nothing
+    assert kendall_tau([1, np.nan, 3, 2], [1, 5, 2, 3]) == pytest.approx(kendall_tau([1, 3, 2], [1, 2, 3]))
+    assert np.isnan(kendall_tau([1.0], [2.0])) and np.isnan(kendall_tau([1, 1, 1], [1, 2, 3]))
+    with pytest.raises(ValueError, match="same length"):
+        kendall_tau([1, 2], [1, 2, 3])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import sys
 import time
@@ -36,15 +37,17 @@ from harness.plan import choose_renderer
 from harness.profiles import PROFILES, get_profile
 from harness.references import reference_record
 from harness.render_cost import measure_render_cost, read_render_cost, write_render_cost
-from harness.renders import RenderStore, scene_selection
+from harness.renders import SCENES_ENV, RenderStore, default_scene_root, scene_selection
 from harness.report import write_report
 from harness.results import (
     TIME_COLUMNS,
     board_table,
     format_table,
     leaderboard,
+    rank_agreement,
     read_results,
     summary,
+    tier_boards,
     timing_setups,
     to_markdown,
 )
@@ -119,9 +122,51 @@ def _announce(args):
     return show
 
 
+def _note(line: str) -> None:
+    print(line, file=sys.stderr)
+
+
 def _banner(executor) -> None:
     if hasattr(executor, "banner"):
         print(executor.banner(), file=sys.stderr)
+
+
+def _renderer_settings(registry, args) -> dict:
+    """``--renderer-option`` values per renderer, each checked against its factory's keyword arguments."""
+    import inspect
+
+    settings = _grouped(getattr(args, "renderer_option", []))
+    for name, values in settings.items():
+        factory = registry.get("renderer", name).factory
+        try:
+            inspect.signature(factory).bind(**values)
+        except TypeError:
+            accepted = [p for p in inspect.signature(factory).parameters if p not in ("self", "args", "kwargs")]
+            raise ValueError(f"renderer {name!r} has no option(s) {sorted(set(values) - set(accepted))}; "
+                             f"options: {accepted}") from None
+    return settings
+
+
+def _scene_roots(args) -> list:
+    """The folders of scene folders of a run: ``--scene-root``, or for a run naming no scenes the default
+    root (``$DENOISE_SCENES``, ``../shared/scenes``), where there is one (a line says so otherwise)."""
+    if args.scene_root or args.scenes is not None or args.scene_dir:
+        return list(args.scene_root)
+    root = default_scene_root()
+    if root is None:
+        print(f"real tier skipped: no scene folders (set ${SCENES_ENV} or --scene-root to a folder of scene "
+              "folders)", file=sys.stderr)
+        return []
+    return [root]
+
+
+def _selection(registry, args, store, tasks, profile) -> list:
+    notes: list = []
+    specs = scene_selection(registry, store, args.scenes, args.scene_dir, tasks, scene_roots=_scene_roots(args),
+                            real_resolution=profile.real_resolution, notes=notes)
+    for line in notes:
+        print(line, file=sys.stderr)
+    return specs
 
 
 def _run(registry, args) -> int:
@@ -137,6 +182,7 @@ def _run(registry, args) -> int:
         resume=args.resume,
         pictures=args.pictures, report_frames=args.report, save_outputs=args.save_outputs,
         progress=_progress(args), on_plan=_announce(args), on_executor=_banner,
+        scene_roots=_scene_roots(args), renderer_settings=_renderer_settings(registry, args), on_note=_note,
     )
     df, store, plan = outcome.table, outcome.store, outcome.plan
     if args.csv:
@@ -211,10 +257,14 @@ def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> No
         print("\nSummary (mean over frames and seeds; ms_median = median per-frame filter time at the scene's "
               "resolution):")
         print(format_table(summary(ok)))
-        board = leaderboard(df, registry.metrics, rank_by)
-        for task, part in _boards(board):
-            print(f"\n{_board_title(task, part, df)}:")
+        boards = tier_boards(df, registry.metrics, rank_by)
+        for task, tier, part in boards:
+            print(f"\n{_board_title(task, part, df, tier if _several_tiers(boards) else None)}:")
             print(format_table(board_table(part, intervals="rank")))
+        agreement = rank_agreement(boards)
+        if len(agreement):
+            print(f"\n{_AGREEMENT_TITLE}:")
+            print(format_table(agreement))
         setups = timing_setups(df)
         if len(setups) > 1:
             print(f"\nNote: rows were timed on {len(setups)} machine setups ({'; '.join(setups)}); compare times "
@@ -233,22 +283,29 @@ def _print_summary(df: pd.DataFrame, registry, rank_by: str | None = None) -> No
             print(f"  {r.filter}/{r.backend} on {r.scene} frame {r.frame}: {r.message}")
 
 
-def _boards(board: pd.DataFrame):
-    """(task, that task's rows) of a leaderboard, keeping its attributes."""
-    for task, part in board.groupby("task", sort=True) if not board.empty else ():
-        part = part.drop(columns="task").reset_index(drop=True)
-        part.attrs.update(board.attrs)
-        yield task, part
+_AGREEMENT_TITLE = ("Rank agreement between the tiers (Kendall's tau-b of the entries' scores on the two tiers' "
+                    "leaderboards, per metric; 1 = same order, 0 = unrelated, -1 = reversed; filters = entries "
+                    "scored on both)")
 
 
-def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame) -> str:
+def _several_tiers(boards) -> bool:
+    return len({tier for _, tier, _ in boards}) > 1
+
+
+def _board_title(task: str, part: pd.DataFrame, df: pd.DataFrame, tier: str | None = None) -> str:
     rank_by = part.attrs.get("rank_by")
     direction = "higher" if part.attrs.get("higher_is_better") else "lower"
     timed = df[(df.task == task) & df[TIME_COLUMNS].notna().any(axis=1)]
     where = f"on {', '.join(sorted(set(timed.scene)))}" if len(timed) else "not measured in this run"
-    return (f"Leaderboard, task {task}: ranked by {rank_by} ({direction} is better; mean over scenes of the "
+    scope = "" if tier is None else f", tier {tier or 'unrecorded'} ({', '.join(_tier_scenes(df, task, tier))})"
+    return (f"Leaderboard, task {task}{scope}: ranked by {rank_by} ({direction} is better; mean over scenes of the "
             f"per-scene means, 95% bootstrap interval over seeds and frames; 'vs next' is a paired test against "
             f"the next entry; ms per frame at 1280x720 and 1920x1080 {where})")
+
+
+def _tier_scenes(df: pd.DataFrame, task: str, tier: str) -> list[str]:
+    ok = df[(df.status == "ok") & (df.task == task) & (df.tier == tier)]
+    return sorted(set(ok.scene))
 
 
 def cmd_show(registry, args) -> int:
@@ -273,14 +330,20 @@ def cmd_show(registry, args) -> int:
                       f"({m['machine'].get('numba_threads')} threads); created {m.get('created')}")
         print(f"\n{provenance}")
     if args.markdown is not None:
-        board = leaderboard(df, registry.metrics, args.rank_by)
+        boards = tier_boards(df, registry.metrics, args.rank_by)
+        several = _several_tiers(boards)
         text = ["# Leaderboard", ""]
         if m and m.get("settings", {}).get("profile"):
             text += [_profile_line(m["settings"]["profile"]), ""]
         if m and m.get("command"):
             text += [f"Command: `{m['command']}`", ""]
-        for task, part in _boards(board):
-            text += [f"## Task {task}", "", _board_title(task, part, df) + ".", "", to_markdown(board_table(part))]
+        for task, tier, part in boards:
+            heading = f"## Task {task}" + (f", tier {tier or 'unrecorded'}" if several else "")
+            text += [heading, "", _board_title(task, part, df, tier if several else None) + ".", "",
+                     to_markdown(board_table(part))]
+        agreement = rank_agreement(boards)
+        if len(agreement):
+            text += ["## Rank agreement between the tiers", "", _AGREEMENT_TITLE + ".", "", to_markdown(agreement)]
         text += ["## Per scene", "", to_markdown(summary(df[df.status == "ok"])), provenance, ""]
         args.markdown.write_text("\n".join(text))
         print(f"markdown written to {args.markdown}")
@@ -331,8 +394,9 @@ def cmd_render(registry, args) -> int:
     _cluster_options(args)
     profile = get_profile(args.profile).with_overrides(resolution=args.resolution, frames=args.frames,
                                                        reference_spp=args.spp, reference_target=args.reference_target)
-    store = RenderStore(registry, _cache(args), resolution=profile.resolution)
-    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
+    store = RenderStore(registry, _cache(args), resolution=profile.resolution,
+                        renderer_settings=_renderer_settings(registry, args))
+    specs = _selection(registry, args, store, [args.task], profile)
     work = [_what_to_render(registry, spec, args, profile) for spec in specs]
     target = profile.reference_target
     estimate = check_work(reference_work(store, work, target or 0.0), store, args.max_hours)
@@ -385,8 +449,9 @@ def cmd_export(registry, args) -> int:
     """Write every selected scene as a capture folder (multi-layer EXR frames, references, sidecar)."""
     from harness.export import export_scene
 
-    store = RenderStore(registry, _cache(args), resolution=args.resolution)
-    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task])
+    store = RenderStore(registry, _cache(args), resolution=args.resolution,
+                        renderer_settings=_renderer_settings(registry, args))
+    specs = scene_selection(registry, store, args.scenes, args.scene_dir, [args.task], scene_roots=args.scene_root)
     for spec in specs:
         sidecar = export_scene(registry, store, spec, args.out / spec.name, task=args.task, renderer=args.renderer,
                                frames=args.frames, spp=args.spp, seed=args.seed, reference_spp=args.reference_spp,
@@ -520,6 +585,10 @@ def cmd_train(registry, args) -> int:
     spec = registry.get("filter", args.filter)
     if spec.trainer is None:
         raise ValueError(f"filter {spec.name!r} is not trainable")
-    path = spec.trainer(seed=args.seed, output=args.output, quick=args.quick)
-    print(f"{spec.name}: weights written to {path}")
+    options = dict(args.option)
+    keywords = inspect.signature(spec.trainer).parameters.values()
+    if options and not any(p.kind is p.VAR_KEYWORD for p in keywords):
+        raise ValueError(f"filter {spec.name!r}: its trainer takes no options (got {sorted(options)})")
+    path = spec.trainer(seed=args.seed, output=args.output, quick=args.quick, **options)
+    print(f"{spec.name}: wrote {path}")
     return 0

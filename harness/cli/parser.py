@@ -138,6 +138,17 @@ def param(value: str) -> tuple[str, str, object]:
     return name, field, parsed
 
 
+def option(value: str) -> tuple[str, object]:
+    """``KEY=VALUE`` with a JSON value (a bare word is a string)."""
+    key, sep, raw = value.partition("=")
+    if not key or not sep:
+        raise argparse.ArgumentTypeError(f"must look like KEY=VALUE, got {value!r}")
+    try:
+        return key, json.loads(raw)
+    except json.JSONDecodeError:
+        return key, raw
+
+
 def grid(value: str) -> tuple[str, str, list]:
     """``FILTER.NAME=V1,V2,...``: a swept parameter, each value JSON (a bare word is a string)."""
     name, field, _ = param(value)
@@ -288,7 +299,12 @@ def _add_selection(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scenes", type=names, default=None, metavar="NAMES",
                    help="scenes to use, comma-separated (default: the built-in suite)")
     p.add_argument("--scene-dir", action="append", default=[], metavar="PATH",
-                   help="also use the scene stored in this folder (e.g. a Mitsuba XML scene); repeatable")
+                   help="also use the scene stored in this folder (e.g. a Mitsuba XML scene): tier real; repeatable")
+    p.add_argument("--scene-root", action="append", default=[], metavar="PATH",
+                   help="also use every scene folder inside this folder (tier real; a run naming no scenes uses "
+                        "$DENOISE_SCENES, else ../shared/scenes where present); repeatable")
+    p.add_argument("--renderer-option", type=param, action="append", default=[], metavar="RENDERER.NAME=VALUE",
+                   help="set a renderer option (JSON value), e.g. pathtracer.jitter=true; repeatable")
     p.add_argument("--renderer", default=None, help="renderer for every scene (default: the preferred one per "
                                                     "scene kind and task)")
     p.add_argument("--resolution", type=resolution, default=None, metavar="WxH",
@@ -462,6 +478,9 @@ def build_parser() -> Parser:
     train.add_argument("--output", type=Path, default=None,
                        help="weights file (default: the filter's shipped location)")
     train.add_argument("--quick", action="store_true", help="a short run (minutes) for smoke tests")
+    train.add_argument("-o", "--option", type=option, action="append", default=[], metavar="KEY=VALUE",
+                       help="an option of the filter's trainer (JSON value; repeatable), e.g. aa_rnn's "
+                            "-o data=DIR -o sequences=1900 (see the filter's docs)")
     _add_common(train)
     return parser
 

@@ -21,7 +21,7 @@ from harness.report import folder as report_folder
 from harness.report import outputs as stored
 from harness.report import pictures, plots
 from harness.report.page import esc, figure, page, table
-from harness.results import board_table, entry_labels, leaderboard, read_results
+from harness.results import board_table, entry_labels, leaderboard, rank_agreement, read_results, tier_boards
 from harness.rows import PER_FRAME_SUFFIX, metric_columns
 
 
@@ -57,7 +57,7 @@ def write_report(run_dir, registry, *, out: str | Path | None = None, metrics=No
     chosen = list(metrics or ([rank_by] if rank_by else []))
     higher = bool(getattr(registry.metrics.get(rank_by), "higher_is_better", False))
     sections = [_summary(manifest, df, render_cost)]
-    sections += _leaderboards(board)
+    sections += _leaderboards(df, registry, board, rank_by)
     ok = df[df.status == "ok"]
     ok = ok.assign(entry=entry_labels(ok)) if len(ok) else ok
     for task in sorted(set(ok.task)) if len(ok) else []:
@@ -98,18 +98,29 @@ def _summary(manifest: dict, df: pd.DataFrame, render_cost: pd.DataFrame) -> str
     return html
 
 
-def _leaderboards(board: pd.DataFrame) -> list[str]:
+def _leaderboards(df: pd.DataFrame, registry, board: pd.DataFrame, rank_by: str | None) -> list[str]:
+    """One leaderboard per task and tier (scenes of both tiers: each ranked on its own, then their agreement)."""
     if board.empty:
         return ["<h2>Leaderboard</h2><p class='note'>no scored job</p>"]
+    boards = tier_boards(df, registry.metrics, rank_by)
+    several = len({tier for _, tier, _ in boards}) > 1
     out = []
-    for task, part in board.groupby("task", sort=True):
-        part = part.drop(columns="task").reset_index(drop=True)
-        part.attrs.update(board.attrs)
-        direction = "higher" if board.attrs.get("higher_is_better") else "lower"
-        out.append(f"<h2>Leaderboard, task {esc(task)}</h2><p class='note'>Ranked by {esc(board.attrs['rank_by'])} "
-                   f"({direction} is better): mean over scenes of per-scene means, 95% bootstrap interval over seeds "
-                   "and frames; 'vs next' is a paired test against the next entry. Click a column to sort.</p>"
-                   + table(board_table(part)))
+    for task, tier, part in boards:
+        direction = "higher" if part.attrs.get("higher_is_better") else "lower"
+        scope = ""
+        if several:
+            scenes = sorted(set(df[(df.status == "ok") & (df.task == task) & (df.tier == tier)].scene))
+            scope = f", tier {tier or 'unrecorded'} ({', '.join(scenes)})"
+        out.append(f"<h2>Leaderboard, task {esc(task)}{esc(scope)}</h2><p class='note'>Ranked by "
+                   f"{esc(part.attrs['rank_by'])} ({direction} is better): mean over scenes of per-scene means, 95% "
+                   "bootstrap interval over seeds and frames; 'vs next' is a paired test against the next entry. "
+                   "Click a column to sort.</p>" + table(board_table(part)))
+    agreement = rank_agreement(boards)
+    if len(agreement):
+        out.append("<h2>Rank agreement between the tiers</h2><p class='note'>Kendall's tau-b of the entries' scores "
+                   "on the two tiers' leaderboards, per metric: 1 = the same order, 0 = unrelated, -1 = reversed; "
+                   "filters = entries scored on both. A ranking made on the procedural scenes alone transfers to "
+                   "real content as far as tau says.</p>" + table(agreement, sortable=False))
     return out
 
 

@@ -1,7 +1,9 @@
 """The path-tracing integrator: next-event estimation with multiple importance sampling.
 
-Every pixel's path starts at the pixel's first hit (the surface point of the G-buffer, traced
-once through the pixel centre), so colour and features agree pixel for pixel. At each vertex the
+A noisy frame's paths all start at the pixel's first hit (the surface point of the G-buffer,
+traced once through the pixel centre or the frame's jittered point), so colour and features agree
+pixel for pixel; a pixel-area reference traces each sample's own camera ray and first hit
+(:func:`accumulate_area`; conventions in :mod:`.pixel_sampling`). At each vertex the
 integrator samples a light (next-event estimation) and the BSDF, and weights the two strategies
 with the power heuristic (Veach and Guibas, SIGGRAPH 1995). Paths stop at ``max_depth`` segments
 (Mitsuba's convention: 1 = emitters seen directly, 2 = direct lighting) and are Russian-rouletted
@@ -43,6 +45,7 @@ from .bsdf import (
 )
 from .lights import DELTA_LIGHT, infinite_radiance, infinite_radiance_pdf, sample_light
 from .materials import HAS_MASK, ONE_SIDED_EMISSION
+from .pixel_sampling import subpixel
 from .rng import stream_key, uniform
 from .shading import bump_normal, bump_shadowing, node_colour, resolve, transparent
 from .traverse import closest_hit, occluded, stack_size
@@ -283,13 +286,14 @@ def any_emission(mat_emit):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def pixel_ray(i, width, height, eye, right, up, forward, tan_half):
-    """Origin and unit direction of the ray through the centre of row-major pixel ``i``, with the
-    operations (and so the rounding) of :meth:`harness.CameraPath.primary_rays`."""
+def pixel_ray(i, width, height, eye, right, up, forward, tan_half, jx, jy):
+    """Origin and unit direction of the ray through the centre of row-major pixel ``i`` shifted by
+    ``(jx, jy)`` pixels (x right, y down), with the operations (and so the rounding) of
+    :meth:`harness.CameraPath.primary_rays`."""
     row = i // width
     col = i - row * width
-    sx = ((col + 0.5) / width * 2.0 - 1.0) * tan_half * (width / height)
-    sy = (1.0 - (row + 0.5) / height * 2.0) * tan_half
+    sx = ((col + 0.5 + jx) / width * 2.0 - 1.0) * tan_half * (width / height)
+    sy = (1.0 - (row + 0.5 + jy) / height * 2.0) * tan_half
     dx = forward[0] + sx * right[0] + sy * up[0]
     dy = forward[1] + sx * right[1] + sy * up[1]
     dz = forward[2] + sx * right[2] + sy * up[2]
@@ -297,13 +301,37 @@ def pixel_ray(i, width, height, eye, right, up, forward, tan_half):
     return eye, (dx / norm, dy / norm, dz / norm)
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, depth, threads):
-    """Primary rays through the pixel centres of a pinhole camera and their first hits.
+@njit(cache=True, error_model="numpy", inline="always")
+def first_hit(o, d, geom, mats, stack_n, stack_t):
+    """The first hit of a camera ray: ``(triangle or -1, b1, b2, distance)``.
 
-    The first hit is the closest surface that a sample can stop at: surfaces where a ``mask``'s
-    opacity is 0 are passed (every path would pass them), partly opaque ones are kept (the
-    path's first step passes them with probability ``1 - opacity``).
+    The closest surface that a sample can stop at: surfaces where a ``mask``'s opacity is 0 are
+    passed (every path would pass them), partly opaque ones are kept (the path's first step
+    passes them with probability ``1 - opacity``).
+    """
+    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
+    mat_root, mat_flags, mat_emit, node_kind, nf, ni, tables, tex_data, tex_off, tex_w, tex_h, tex_uv = mats
+    h, t, b1, b2 = closest_hit(o[0], o[1], o[2], d[0], d[1], d[2], np.inf, -1, tri_v, nodes_f, nodes_i,
+                               stack_n, stack_t)
+    travelled = 0.0
+    for _layer in range(64):
+        if h < 0 or (mat_flags[tri_mat[h]] & HAS_MASK) == 0:
+            break
+        p, ng, ns, tu, tv = surface(h, b1, b2, tri_v, tri_n, tri_uv)
+        front = ns[0] * d[0] + ns[1] * d[1] + ns[2] * d[2] < 0.0
+        if not transparent(mat_root[tri_mat[h]], front, tu, tv, node_kind, nf, ni, tex_data, tex_off,
+                           tex_w, tex_h, tex_uv):
+            break
+        travelled += t
+        h, t, b1, b2 = closest_hit(p[0], p[1], p[2], d[0], d[1], d[2], np.inf, h, tri_v, nodes_f,
+                                   nodes_i, stack_n, stack_t)
+    return h, b1, b2, t + travelled
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def first_hits(eye, right, up, forward, tan_half, jx, jy, width, height, geom, mats, depth, threads):
+    """Primary rays through the pixel centres (shifted by ``(jx, jy)``) of a pinhole camera and their
+    first hits (:func:`first_hit`).
 
     Parameters
     ----------
@@ -311,6 +339,8 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, dep
         Camera position and basis (:meth:`harness.CameraPath.basis`).
     tan_half : float
         Tangent of half the vertical field of view.
+    jx, jy : float
+        Offset of every ray from its pixel's centre, pixels (x right, y down): the frame's jitter.
     width, height : int
     geom, mats, depth : scene arrays (see :class:`.scenedata.SceneData`).
     threads : int
@@ -325,8 +355,6 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, dep
     bary : ndarray (N, 3) float64
         Barycentric weights of corners 1 and 2, and the distance.
     """
-    tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
-    mat_root, mat_flags, mat_emit, node_kind, nf, ni, tables, tex_data, tex_off, tex_w, tex_h, tex_uv = mats
     n = width * height
     origins = np.empty((n, 3))
     dirs = np.empty((n, 3))
@@ -342,24 +370,10 @@ def first_hits(eye, right, up, forward, tan_half, width, height, geom, mats, dep
             if task >= tasks:
                 break
             for i in range(task * TASK, min(task * TASK + TASK, n)):
-                o, d = pixel_ray(i, width, height, eye, right, up, forward, tan_half)
+                o, d = pixel_ray(i, width, height, eye, right, up, forward, tan_half, jx, jy)
                 origins[i, 0], origins[i, 1], origins[i, 2] = o
                 dirs[i, 0], dirs[i, 1], dirs[i, 2] = d
-                h, t, b1, b2 = closest_hit(o[0], o[1], o[2], d[0], d[1], d[2], np.inf, -1, tri_v, nodes_f, nodes_i,
-                                           stack_n, stack_t)
-                travelled = 0.0
-                for _layer in range(64):
-                    if h < 0 or (mat_flags[tri_mat[h]] & HAS_MASK) == 0:
-                        break
-                    p, ng, ns, tu, tv = surface(h, b1, b2, tri_v, tri_n, tri_uv)
-                    front = ns[0] * d[0] + ns[1] * d[1] + ns[2] * d[2] < 0.0
-                    if not transparent(mat_root[tri_mat[h]], front, tu, tv, node_kind, nf, ni, tex_data, tex_off,
-                                       tex_w, tex_h, tex_uv):
-                        break
-                    travelled += t
-                    h, t, b1, b2 = closest_hit(p[0], p[1], p[2], d[0], d[1], d[2], np.inf, h, tri_v, nodes_f,
-                                               nodes_i, stack_n, stack_t)
-                t += travelled
+                h, b1, b2, t = first_hit(o, d, geom, mats, stack_n, stack_t)
                 tri[i] = h
                 bary[i, 0] = b1
                 bary[i, 1] = b2
@@ -445,3 +459,52 @@ def accumulate_samples(origins, dirs, tri, bary, geom, mats, lights, lp, eps, de
                     acc_direct[i, 0], acc_direct[i, 1], acc_direct[i, 2] = d0, d1, d2
                 shadow[i, 0] += rays
                 shadow[i, 1] += hits
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def accumulate_area(eye, right, up, forward, tan_half, width, height, geom, mats, lights, lp, eps, depth, max_depth,
+                    rr_depth, strategy, seed, frame, start, count, acc, threads):
+    """Add ``count[p]`` pixel-area samples, from sample index ``start[p]``, to pixel ``p``'s sum (in place).
+
+    Each sample's camera ray goes through its own point of the pixel (:func:`.pixel_sampling.subpixel`)
+    and is traced to its own first hit (:func:`first_hit`) before the path continues as in
+    :func:`accumulate_samples`; the sums are the same whatever the thread count or the split of
+    the samples into calls.
+
+    Parameters
+    ----------
+    eye, right, up, forward, tan_half, width, height : the camera, as for :func:`first_hits`.
+    geom, mats, lights, lp, eps, depth : scene arrays (see :class:`.scenedata.SceneData`).
+    max_depth, rr_depth, strategy, seed, frame : int
+    start, count : ndarray (N,) int64
+    acc : ndarray (N, 3) float64
+        Running sums of radiance.
+    threads : int
+    """
+    n = width * height
+    emissive = any_emission(mats[2])
+    tasks = (n + TASK - 1) // TASK
+    counter = np.zeros(1, np.int64)
+    for _ in prange(min(max(threads, 1), tasks)):
+        stack_n = np.empty(stack_size(depth), np.int32)
+        stack_t = np.empty(stack_size(depth), np.float32)
+        while True:
+            task = kernels.take(counter)
+            if task >= tasks:
+                break
+            for i in range(task * TASK, min(task * TASK + TASK, n)):
+                s0, s1, s2 = acc[i, 0], acc[i, 1], acc[i, 2]
+                for k in range(count[i]):
+                    sample = start[i] + k
+                    jx, jy = subpixel(seed, frame, i, sample)
+                    o, d = pixel_ray(i, width, height, eye, right, up, forward, tan_half, jx, jy)
+                    h, b1, b2, _t = first_hit(o, d, geom, mats, stack_n, stack_t)
+                    key = stream_key(seed, frame, i, sample)
+                    r, g, b, _xr, _xg, _xb, _vr, _vh = trace_sample(key, o, d, h, b1, b2, geom, mats, lights, lp, eps,
+                                                                    max_depth, rr_depth, strategy, emissive, stack_n,
+                                                                    stack_t)
+                    if math.isfinite(r) and math.isfinite(g) and math.isfinite(b):
+                        s0 += r
+                        s1 += g
+                        s2 += b
+                acc[i, 0], acc[i, 1], acc[i, 2] = s0, s1, s2

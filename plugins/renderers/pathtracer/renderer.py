@@ -10,8 +10,9 @@ import numpy as np
 from harness import Frame, FrameMeta, Scene
 
 from .gbuffer import gbuffer
-from .integrator import STRATEGIES, accumulate_samples, first_hits
+from .integrator import STRATEGIES, accumulate_area, accumulate_samples, first_hits
 from .materials import ONE_SIDED_EMISSION
+from .pixel_sampling import REFERENCE_PIXELS, halton_jitter
 from .pixels import PixelState
 from .sampler import PathSampler
 from .scenedata import SceneData, build_scene_data
@@ -20,19 +21,29 @@ OWNER = "renderer 'pathtracer'"
 GBUFFER_CHANNELS = ("albedo", "normal", "depth", "position", "object_id", "motion", "emission", "visibility")
 
 
-class FrameSetup:
-    """Everything about one (scene, frame, resolution) that does not depend on samples."""
+def camera_arguments(scene: Scene, frame_index: int) -> tuple:
+    """``(eye, right, up, forward, tan_half)`` of the scene's camera in a frame, as the kernels take them."""
+    if scene.camera is None:
+        raise ValueError(f"{OWNER}: scene {scene.name!r} has no camera")
+    cam = scene.camera
+    right, up, forward = (tuple(float(x) for x in v) for v in cam.basis(frame_index))
+    eye = tuple(float(x) for x in cam.eye(frame_index))
+    return eye, right, up, forward, float(np.tan(np.radians(cam.fov_at(frame_index)) / 2.0))
 
-    def __init__(self, scene: Scene, frame_index: int, width: int, height: int, data: SceneData):
-        if scene.camera is None:
-            raise ValueError(f"{OWNER}: scene {scene.name!r} has no camera")
+
+class FrameSetup:
+    """Everything about one (scene, frame, resolution, jitter) that does not depend on samples.
+
+    ``jitter``: the offset (x right, y down, pixels) of every pixel's first hit from its centre.
+    """
+
+    def __init__(self, scene: Scene, frame_index: int, width: int, height: int, data: SceneData,
+                 jitter=(0.0, 0.0)):
         self.scene, self.index, self.width, self.height, self.data = scene, frame_index, width, height, data
-        cam = scene.camera
-        right, up, forward = (tuple(float(x) for x in v) for v in cam.basis(frame_index))
-        eye = tuple(float(x) for x in cam.eye(frame_index))
-        tan_half = float(np.tan(np.radians(cam.fov) / 2.0))
-        self.origins, self.dirs, self.tri, self.bary = first_hits(eye, right, up, forward, tan_half, width,
-                                                                  height, data.geometry(), data.materials(),
+        self.jitter = (float(jitter[0]), float(jitter[1]))
+        eye, right, up, forward, tan_half = camera_arguments(scene, frame_index)
+        self.origins, self.dirs, self.tri, self.bary = first_hits(eye, right, up, forward, tan_half, *self.jitter,
+                                                                  width, height, data.geometry(), data.materials(),
                                                                   data.depth, numba.get_num_threads())
         self._gbuffer = None
 
@@ -87,24 +98,44 @@ class PathTracer:
         Bounce from which Russian roulette may end paths.
     strategy : {"mis", "light", "bsdf"}
         Next-event estimation with MIS (default), light sampling only, or BSDF sampling only.
+    jitter : bool
+        Noisy frames (and their G-buffer) through the pixel centres shifted by the frame's Halton
+        (2, 3) offset, as TAA engines render; False (default): through the pixel centres, as a
+        rasterized G-buffer without jitter (see :mod:`.pixel_sampling`).
+    reference_pixel : {"area", "centre"}
+        References integrate over the pixel area (box filter, stratified; default, as Mitsuba 3)
+        or take the pixel centre.
     """
 
-    def __init__(self, max_depth: int | None = None, rr_depth: int = 5, strategy: str = "mis"):
+    def __init__(self, max_depth: int | None = None, rr_depth: int = 5, strategy: str = "mis", jitter: bool = False,
+                 reference_pixel: str = "area"):
         if strategy not in STRATEGIES:
             raise ValueError(f"{OWNER}: strategy must be one of {sorted(STRATEGIES)}, got {strategy!r}")
         if max_depth is not None and int(max_depth) < 1:
             raise ValueError(f"{OWNER}: max_depth must be >= 1, got {max_depth}")
         if int(rr_depth) < 1:
             raise ValueError(f"{OWNER}: rr_depth must be >= 1, got {rr_depth}")
+        if not isinstance(jitter, bool):
+            raise ValueError(f"{OWNER}: jitter must be true or false, got {jitter!r}")
+        if reference_pixel not in REFERENCE_PIXELS:
+            raise ValueError(f"{OWNER}: reference_pixel must be one of {list(REFERENCE_PIXELS)}, "
+                             f"got {reference_pixel!r}")
         self.max_depth = None if max_depth is None else int(max_depth)
         self.rr_depth = int(rr_depth)
         self.strategy = strategy
+        self.jitter = jitter
+        self.reference_pixel = reference_pixel
         self._scenes: OrderedDict = OrderedDict()
         self._setups: OrderedDict = OrderedDict()
 
     def settings(self) -> dict:
-        """Settings that change images (part of cache keys)."""
-        return {"max_depth": self.max_depth, "rr_depth": self.rr_depth, "strategy": self.strategy}
+        """Settings that change images (part of cache keys), the sampling conventions included."""
+        return {"max_depth": self.max_depth, "rr_depth": self.rr_depth, "strategy": self.strategy,
+                "jitter": self.jitter, "reference_pixel": self.reference_pixel}
+
+    def frame_jitter(self, frame_index: int) -> tuple[float, float]:
+        """The offset of a noisy frame's first hits from the pixel centres (zero without ``jitter``)."""
+        return halton_jitter(frame_index) if self.jitter else (0.0, 0.0)
 
     # -- preparation ---------------------------------------------------------------------------
     def scene_data(self, scene: Scene, frame_index: int) -> SceneData:
@@ -120,14 +151,16 @@ class PathTracer:
         self._scenes.move_to_end(key)
         return self._scenes[key]
 
-    def setup(self, scene: Scene, frame_index: int, resolution=None) -> FrameSetup:
-        """Primary rays and first hits of a frame at a resolution (cached)."""
+    def setup(self, scene: Scene, frame_index: int, resolution=None, jitter=None) -> FrameSetup:
+        """Primary rays and first hits of a frame at a resolution (cached); ``jitter`` None: the noisy
+        frames' convention (:meth:`frame_jitter`)."""
         w, h = (int(v) for v in (resolution or scene.resolution))
         if w < 1 or h < 1:
             raise ValueError(f"{OWNER}: resolution must be positive, got {(w, h)}")
-        key = (scene.content_hash(), frame_index, w, h)
+        jitter = self.frame_jitter(frame_index) if jitter is None else (float(jitter[0]), float(jitter[1]))
+        key = (scene.content_hash(), frame_index, w, h, jitter)
         if key not in self._setups:
-            self._setups[key] = FrameSetup(scene, frame_index, w, h, self.scene_data(scene, frame_index))
+            self._setups[key] = FrameSetup(scene, frame_index, w, h, self.scene_data(scene, frame_index), jitter)
             while len(self._setups) > 2:
                 self._setups.popitem(last=False)
         self._setups.move_to_end(key)
@@ -178,12 +211,14 @@ class PathTracer:
                     out[name] = g[name]
         out = {k: v for k, v in out.items() if k == "color" or k in channels}
         cam = setup.scene.camera
+        previous = max(setup.index - 1, 0)
         meta = FrameMeta(
             index=setup.index,
             scene=setup.scene.name,
             seed=int(seed),
-            view_proj=cam.view_projection(setup.index, w, h),
-            prev_view_proj=cam.view_projection(max(setup.index - 1, 0), w, h),
+            view_proj=cam.view_projection(setup.index, w, h, setup.jitter),
+            prev_view_proj=cam.view_projection(previous, w, h, self.frame_jitter(previous)),
+            jitter=setup.jitter,
             camera_cut=setup.index == 0,
             extra={"max_depth": self._max_depth(setup.scene), "samples": int(state.spp.sum())},
         )
@@ -216,7 +251,8 @@ class PathTracer:
 
     def accumulate(self, scene: Scene, frame_index: int, *, first_sample: int, count: int, seed: int = 0,
                    resolution=None) -> np.ndarray:
-        """Sum of the radiance of samples ``[first_sample, first_sample + count)`` per pixel.
+        """Sum of the radiance of samples ``[first_sample, first_sample + count)`` per pixel, over the
+        pixel's area (``reference_pixel="area"``) or at its centre.
 
         Returns
         -------
@@ -224,12 +260,24 @@ class PathTracer:
         """
         if int(first_sample) < 0 or int(count) < 0:
             raise ValueError(f"{OWNER}: first_sample and count must be >= 0, got {first_sample}, {count}")
-        setup = self.setup(scene, frame_index, resolution)
-        state = PixelState(setup.width * setup.height)
-        state.spp[:] = int(first_sample)
-        self.add_samples(setup, state, np.full(state.spp.shape, int(count), np.int64), seed,
-                         moments=False, split=False)
-        return state.acc.reshape(setup.height, setup.width, 3)
+        if self.reference_pixel == "centre":
+            setup = self.setup(scene, frame_index, resolution, jitter=(0.0, 0.0))
+            state = PixelState(setup.width * setup.height)
+            state.spp[:] = int(first_sample)
+            self.add_samples(setup, state, np.full(state.spp.shape, int(count), np.int64), seed,
+                             moments=False, split=False)
+            return state.acc.reshape(setup.height, setup.width, 3)
+        w, h = (int(v) for v in (resolution or scene.resolution))
+        if w < 1 or h < 1:
+            raise ValueError(f"{OWNER}: resolution must be positive, got {(w, h)}")
+        data = self.scene_data(scene, frame_index)
+        acc = np.zeros((w * h, 3))
+        accumulate_area(*camera_arguments(scene, frame_index), w, h, data.geometry(), data.materials(), data.lights(),
+                        data.lp, data.eps, data.depth, self._max_depth(scene), self.rr_depth,
+                        STRATEGIES[self.strategy], int(seed), int(frame_index),
+                        np.full(w * h, int(first_sample), np.int64), np.full(w * h, int(count), np.int64), acc,
+                        numba.get_num_threads())
+        return acc.reshape(h, w, 3)
 
     def reference(self, scene: Scene, frame_index: int, *, spp: int = 4096, seed: int = 0,
                   resolution=None) -> np.ndarray:

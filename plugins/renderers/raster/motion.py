@@ -65,5 +65,5 @@ def motion_vectors(scene, position: np.ndarray, object_id: np.ndarray, frame: in
             now_to_prev[k] = obj.transform(frame - 1) @ np.linalg.inv(obj.transform(frame))
     right, up, forward = camera.basis(frame)
     motion_kernel(position, object_id, now_to_prev, camera.view_projection(frame - 1, width, height),
-                  camera.eye(frame - 1), right, up, forward, float(np.tan(np.radians(camera.fov) / 2.0)), out)
+                  camera.eye(frame - 1), right, up, forward, float(np.tan(np.radians(camera.fov_at(frame)) / 2.0)), out)
     return out

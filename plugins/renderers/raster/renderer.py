@@ -114,7 +114,7 @@ class RasterRenderer:
         right, up, forward = camera.basis(frame)
         surface_kernel(tri, soup.vertices.astype(np.float64), soup.normals.astype(np.float64),
                        soup.uvs.astype(np.float64), camera.eye(frame), right, up, forward,
-                       float(np.tan(np.radians(camera.fov) / 2.0)), float(jitter[0]), float(jitter[1]),
+                       float(np.tan(np.radians(camera.fov_at(frame)) / 2.0)), float(jitter[0]), float(jitter[1]),
                        position, normal, uv, depth, direction)
         hit = tri >= 0
         material = np.full((height, width), -1, np.int32)
@@ -213,7 +213,7 @@ def _raster_view_proj(camera, frame: int, width: int, height: int, jitter, soup)
     extent = float(np.max(-(box @ view[:3, :3].T + view[:3, 3])[:, 2]))
     near = camera.near
     far = min(camera.far, max(extent * 1.01 + near, 2.0 * near))
-    proj = camera.projection_matrix(width, height, jitter)
+    proj = camera.projection_matrix(width, height, jitter, frame)
     proj[2, 2] = (far + near) / (near - far)
     proj[2, 3] = 2.0 * far * near / (near - far)
     return proj @ view

@@ -1,10 +1,12 @@
 """Mitsuba 0.6 / 3 XML scene plugin.
 
 Implements the ``open_scene`` hook (``denoise-bench run --scene-dir PATH``) for folders holding a
-Mitsuba scene XML, and registers the third-party test scenes ``classroom``, ``living-room`` and
-``sponza`` (not in the default suite), read from ``../shared/scenes/<name>`` relative to the
-current directory or to the project root. Approximations are reported as
-:class:`MitsubaWarning` warnings, never as failures.
+Mitsuba scene XML (or an ``animation.toml`` naming one), and registers the third-party test scenes
+``classroom``, ``living-room`` and ``sponza`` (not in the default suite, tier ``real``), read from
+``../shared/scenes/<name>`` relative to the current directory or to the project root. Every scene
+is a sequence: its ``animation.toml`` sidecar, or the generated default camera path
+(:mod:`.animation`, :mod:`.camera_path`). Approximations are reported as :class:`MitsubaWarning`
+warnings, never as failures.
 """
 
 from __future__ import annotations
@@ -14,10 +16,12 @@ from pathlib import Path
 
 from harness import SceneSpec, hookimpl
 
-from .loader import find_scene_file, load
+from .animation import DEFAULT_FRAMES, AnimationError
+from .animation import read as read_animation
+from .loader import find_scene_file, load, sidecar_of
 from .xmlscene import MitsubaWarning
 
-VERSION = "1.0"
+VERSION = "1.1"
 THIRD_PARTY = {
     "classroom": "Japanese Classroom (Mitsuba 0.6 XML, OBJ, textures, sun/sky)",
     "living-room": "The Grey & White Room (Mitsuba 0.6 XML, OBJ, env map, glass, metals)",
@@ -62,13 +66,23 @@ def _factory(name: str):
     return build
 
 
+def declared_frames(name: str) -> int:
+    """Frames of a registered scene: its sidecar's where the folder has one, else the default path's."""
+    try:
+        return read_animation(sidecar_of(scene_folder(name))).frames
+    except (FileNotFoundError, AnimationError):
+        return DEFAULT_FRAMES
+
+
 @hookimpl
 def register_scenes():
-    return [
-        SceneSpec(name=name, version=VERSION, factory=_factory(name), tags={"static", "mitsuba"}, frames=1,
-                  resolution=RESOLUTION, kind="mesh", suite=False, description=description)
-        for name, description in THIRD_PARTY.items()
-    ]
+    specs = []
+    for name, description in THIRD_PARTY.items():
+        frames = declared_frames(name)
+        specs.append(SceneSpec(name=name, version=VERSION, factory=_factory(name), frames=frames,
+                               tags={"dynamic" if frames > 1 else "static", "mitsuba"}, resolution=RESOLUTION,
+                               kind="mesh", suite=False, description=description, tier="real"))
+    return specs
 
 
 @hookimpl

@@ -11,8 +11,10 @@ import numpy as np
 
 from harness import Material, Scene, SceneObject
 
+from . import animation
 from .bsdfs import BsdfContext, describe, has_texture, is_glossy, material
 from .emitters_sensor import camera, environment_and_sun, point_light, spot_light
+from .sequence import animate
 from .shapes import load_shape, sphere, to_polydata
 from .sun_sky import KINDS as SUN_SKY_KINDS
 from .sun_sky import sun_and_sky
@@ -25,8 +27,12 @@ BLACK_BSDF = {"type": "diffuse", "reflectance": 0.0}
 
 
 def find_scene_file(folder: Path) -> Path | None:
-    """The Mitsuba XML of ``folder`` (``scene.xml`` first, else the only ``*.xml`` whose root is ``<scene>``)."""
+    """The Mitsuba XML of ``folder``: the file its ``animation.toml`` names (key ``scene``), else
+    ``scene.xml``, else the first ``*.xml`` whose root is ``<scene>``."""
     folder = Path(folder)
+    named = _sidecar_scene(folder)
+    if named is not None:
+        return named if named.suffix.lower() == ".xml" and _is_scene(named) else None
     if folder.is_file():
         return folder if folder.suffix.lower() == ".xml" and _is_scene(folder) else None
     if not folder.is_dir():
@@ -36,6 +42,30 @@ def find_scene_file(folder: Path) -> Path | None:
         return preferred
     candidates = [p for p in sorted(folder.glob("*.xml")) if _is_scene(p)]
     return candidates[0] if candidates else None
+
+
+def _sidecar_scene(folder: Path) -> Path | None:
+    """The scene file that the ``animation.toml`` of ``folder`` names, if it names one that exists."""
+    sidecar = animation.sidecar_beside(folder) if folder.is_dir() else None
+    if sidecar is None:
+        return None
+    try:
+        named = animation.read(sidecar).scene
+    except animation.AnimationError:
+        return None  # the load reports it
+    return named if named is not None and named.is_file() else None
+
+
+def sidecar_of(path: Path) -> Path | None:
+    """The ``animation.toml`` that animates the scene at ``path`` (a folder or an XML file): the one in
+    the folder named, else the one beside the scene file; None where there is none."""
+    path = Path(path)
+    if path.is_dir():
+        own = animation.sidecar_beside(path)
+        if own is not None:
+            return own
+    xml_path = find_scene_file(path)
+    return animation.sidecar_beside(xml_path) if xml_path is not None else None
 
 
 def _is_scene(path: Path) -> bool:
@@ -48,7 +78,14 @@ def _is_scene(path: Path) -> bool:
 
 
 def load(path: Path, name: str | None = None) -> Scene:
-    """Load the Mitsuba scene at ``path`` (a folder or an XML file).
+    """Load the Mitsuba scene at ``path`` (a folder or an XML file) as a sequence.
+
+    The ``animation.toml`` of the folder (or beside the file) gives the frames, the camera's
+    keyframes and the shapes' motion (:mod:`.animation`); without one, or without camera keys,
+    the camera follows the generated default path (:mod:`.camera_path`) over
+    :data:`.animation.DEFAULT_FRAMES` frames. Objects are named by the shape's ``id``, else
+    ``shape<k>`` with ``k`` the shape's index among the file's top-level ``<shape>`` elements;
+    ``scene.params["shapes"]`` maps each object to its element.
 
     Unsupported elements and approximations are reported with :class:`MitsubaWarning`, and the
     distinct messages are kept in ``scene.params["approximations"]`` (for the run's manifest);
@@ -96,6 +133,9 @@ def _load(path: Path, name: str | None) -> Scene:
     if xml_path is None:
         raise FileNotFoundError(f"no Mitsuba scene XML in {path}")
     folder = xml_path.parent
+    sidecar = sidecar_of(Path(path))
+    if name is None and sidecar is not None and sidecar.parent != folder:
+        name = sidecar.parent.name  # a folder of its own animating a scene elsewhere
     root = parse(xml_path)
     ctx = BsdfContext(folder, root)
     table = _Materials()
@@ -109,9 +149,12 @@ def _load(path: Path, name: str | None) -> Scene:
     points = []
     delta_lights: list[dict] = []
     sunsky = None
+    shapes: list[dict] = []  # object -> its element (scene.params["shapes"])
+    element = -1
     for node in root:
         tag = node.tag
         if tag == "shape":
+            element += 1
             mesh = load_shape(node, folder, cache)
             if mesh is None or len(mesh.corners) == 0:
                 continue
@@ -125,8 +168,9 @@ def _load(path: Path, name: str | None) -> Scene:
                     warn(f"shape emitter {emitter.get('type')!r} treated as an area light")
                 emission = get_color(emitter, "radiance", (1.0, 1.0, 1.0), illuminant=True)
             index = table.add(desc, label, emission)
-            objects.append(SceneObject(node.get("id") or f"shape{len(objects)}", to_polydata(mesh, index),
+            objects.append(SceneObject(node.get("id") or f"shape{element}", to_polydata(mesh, index),
                                        material=index))
+            shapes.append({"object": objects[-1].name, "element": element, "id": node.get("id")})
         elif tag == "emitter" and node.get("type") == "point":
             points.append(node)
         elif tag == "emitter" and node.get("type") == "spot":
@@ -153,6 +197,7 @@ def _load(path: Path, name: str | None) -> Scene:
             index = table.add(BLACK_BSDF, "point-light", radiance)
             objects.append(SceneObject(node.get("id") or f"point{len(objects)}",
                                        to_polydata(sphere(centre, radius), index), material=index))
+            shapes.append({"object": objects[-1].name, "element": None, "id": node.get("id"), "point_light": True})
     if cam is None:
         warn("scene has no sensor; using a camera looking at the scene's bounds")
         cam = _default_camera(objects)
@@ -170,7 +215,7 @@ def _load(path: Path, name: str | None) -> Scene:
         tags.add("spot")
     if environment is not None:
         tags.add("sky" if environment.kind == "sky" or sunsky is not None else "environment")
-    return Scene(
+    scene = Scene(
         name=name or folder.name,
         frame_count=1,
         resolution=film,
@@ -182,10 +227,11 @@ def _load(path: Path, name: str | None) -> Scene:
         camera=cam,
         params={"format": "mitsuba", "version": ".".join(map(str, version(root))), "file": xml_path.name,
                 "film_resolution": list(film), "bsdfs": table.entries, "delta_lights": delta_lights,
-                **({"sunsky": sunsky} if sunsky is not None else {})},
+                "shapes": shapes, **({"sunsky": sunsky} if sunsky is not None else {})},
         max_depth=5,
         source=str(folder),
     )
+    return animate(scene, animation.read(sidecar))
 
 
 def _shape_bsdf(node: ET.Element, ctx: BsdfContext) -> tuple[dict | None, str]:
@@ -212,4 +258,4 @@ def _default_camera(objects: list):
     return CameraPath(positions=[eye], targets=[centre], fov=45.0)
 
 
-__all__ = ["find_scene_file", "load"]
+__all__ = ["find_scene_file", "load", "sidecar_of"]
