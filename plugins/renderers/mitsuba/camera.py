@@ -23,7 +23,7 @@ def view(camera, frame: int, width: int, height: int) -> dict:
     right, up, forward = camera.basis(frame)
     eye = np.asarray(camera.eye(frame), np.float64)
     return {"eye": [float(v) for v in eye], "target": [float(v) for v in eye + forward],
-            "up": [float(v) for v in up], "forward": [float(v) for v in forward], "fov": float(camera.fov),
+            "up": [float(v) for v in up], "forward": [float(v) for v in forward], "fov": camera.fov_at(frame),
             "width": int(width), "height": int(height), "near": NEAR, "far": FAR}
 
 

@@ -48,7 +48,7 @@ class LoadedScene:
     def __init__(self, mi, scene: Scene, max_depth: int, rr_depth: int):
         mi_scene, shape_ids = scenefile.load(mi, scenefile.scene_file(scene), scene.params.get("sunsky"))
         shapes = {s.id(): s for s in mi_scene.shapes()}
-        matched = match_objects(shapes, shape_ids, scene.objects)
+        matched = match_objects(shape_ids, scene)
         self.ids = ids = object_ids(mi_scene.shapes(), matched, len(scene.objects))
         self.unmatched = sum(1 for sid in shapes if matched.get(sid, -1) < 0)
         self.poser = Poser(mi, mi_scene, matched, scene.objects)

@@ -1,14 +1,13 @@
 """Mitsuba shapes against the harness scene's objects: object ids and per-frame poses.
 
-The Mitsuba scene plugin makes one :class:`harness.SceneObject` per top-level ``<shape>`` it can
-read, in file order (then one sphere per ``point`` emitter, which Mitsuba renders as a point
-light and not as a shape). So the file's shapes and the scene's objects are walked together: a
-shape is the next object when their bounding boxes agree (the plugin bakes ``toWorld`` into the
-points; a tolerance of 2% of the object's diagonal covers the area-preserving scale of its
-tessellated spheres; a mesh's box is that of the vertices its faces use); a shape the plugin skipped
-matches no object. The object id of a pixel is
-its object's index in ``scene.objects`` (so :meth:`harness.Scene.motion` moves it), and shapes
-without an object get ids after those, one each: every shape has a distinct id.
+The Mitsuba scene plugin records which top-level ``<shape>`` element (its index among the file's
+top-level shapes, in file order) each :class:`harness.SceneObject` comes from, in
+``scene.params["shapes"]`` (point lights, spheres to the path tracer, come from no shape); the
+renderer's copy of the file names element ``k`` ``shape_ids[k]`` (:mod:`.scenefile`). So a shape's
+object is found by that record, the one mapping the scene plugin and the renderer share; a shape
+the plugin skipped matches no object. The object id of a pixel is its object's index in
+``scene.objects`` (so :meth:`harness.Scene.motion` moves it), and shapes without an object get ids
+after those, one each: every shape has a distinct id.
 
 A frame's pose: an object with ``transforms`` is moved by ``transform(frame)`` applied to its
 rest pose, as :meth:`harness.Scene.triangles` does (mesh vertices and normals through
@@ -19,53 +18,25 @@ from __future__ import annotations
 
 import numpy as np
 
-#: bounding boxes agree within this fraction of the object's diagonal (plus a scene-size floor)
-BOX_TOLERANCE = 0.02
 
-
-def match_objects(shapes: dict, shape_ids: list[str], objects: list) -> dict[str, int]:
-    """The harness object index of each Mitsuba shape id (file order walk; -1 where none matches).
+def match_objects(shape_ids: list[str], scene) -> dict[str, int]:
+    """The harness object index of each Mitsuba shape id (-1 where the shape has no object).
 
     Parameters
     ----------
-    shapes : dict of str to mitsuba Shape
-        The loaded scene's shapes by id.
     shape_ids : list of str
-        The file's top-level shape ids, in file order.
-    objects : list of harness.SceneObject
+        The ids of the file's top-level shapes, in file order.
+    scene : harness.Scene
+        A scene of the Mitsuba scene plugin (``scene.params["shapes"]``: ``{"object": name,
+        "element": k or None, ...}`` per object).
     """
-    boxes = [_object_box(o) for o in objects]
-    corners = [b for b in boxes if b is not None]
-    if corners:
-        allpts = np.concatenate(corners)
-        floor = 1e-5 * float(np.linalg.norm(allpts.max(0) - allpts.min(0)))
-    else:
-        floor = 0.0
-    out, at = {}, 0
-    for sid in shape_ids:
-        shape = shapes.get(sid)
-        if shape is None:
-            continue
-        lo, hi = shape_box(shape)
-        if at < len(objects) and boxes[at] is not None and _same_box(boxes[at], lo, hi, floor):
-            out[sid] = at
-            at += 1
-        else:
-            out[sid] = -1
+    index = {obj.name: k for k, obj in enumerate(scene.objects)}
+    out = {sid: -1 for sid in shape_ids}
+    for entry in scene.params.get("shapes") or ():
+        element = entry.get("element")
+        if element is not None and 0 <= int(element) < len(shape_ids):
+            out[shape_ids[int(element)]] = index.get(entry.get("object"), -1)
     return out
-
-
-def shape_box(shape) -> tuple[np.ndarray, np.ndarray]:
-    """A shape's world bounding box: of the vertices its faces use, for a mesh (Mitsuba's own box of
-    an OBJ mesh also holds vertices no face uses), else ``shape.bbox()``."""
-    if shape.is_mesh():
-        faces = np.array(shape.faces_buffer(), np.int64).ravel()
-        points = np.array(shape.vertex_positions_buffer(), np.float64).reshape(-1, 3)
-        if faces.size:
-            used = points[np.unique(faces)]
-            return used.min(0), used.max(0)
-    box = shape.bbox()
-    return np.array(box.min, np.float64).ravel(), np.array(box.max, np.float64).ravel()
 
 
 def object_ids(shapes: list, matched: dict[str, int], count: int) -> dict[str, int]:
@@ -79,18 +50,6 @@ def object_ids(shapes: list, matched: dict[str, int], count: int) -> dict[str, i
             ids[sid] = extra
             extra += 1
     return ids
-
-
-def _object_box(obj) -> np.ndarray | None:
-    pts = np.asarray(obj.mesh.points, np.float64)
-    if pts.size == 0:
-        return None
-    return np.stack([pts.min(0), pts.max(0)])
-
-
-def _same_box(box: np.ndarray, lo: np.ndarray, hi: np.ndarray, floor: float) -> bool:
-    tol = BOX_TOLERANCE * float(np.linalg.norm(box[1] - box[0])) + floor
-    return bool(np.all(np.abs(box[0] - lo) <= tol) and np.all(np.abs(box[1] - hi) <= tol))
 
 
 class Poser:
