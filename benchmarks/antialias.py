@@ -96,9 +96,14 @@ def run_filter(registry, name: str, params: dict, frames) -> list[np.ndarray]:
 def trail_masks(scene, frames) -> list[np.ndarray]:
     """Per frame: pixels that showed a moving object in one of the last frames and do not now."""
     moving = [k for k, obj in enumerate(scene.objects) if obj.transforms is not None]
-    on = [np.isin(f["object_id"], moving) for f in frames]
+    return moving_trails(moving, [f["object_id"] for f in frames])
+
+
+def moving_trails(moving, object_ids) -> list[np.ndarray]:
+    """:func:`trail_masks` from the ids of the moving objects and each frame's ``object_id``."""
+    on = [np.isin(ids, moving) for ids in object_ids]
     masks = []
-    for t in range(len(frames)):
+    for t in range(len(on)):
         was = np.zeros_like(on[t])
         for k in range(1, TRAIL_FRAMES + 1):
             if t - k >= 0:

@@ -16,6 +16,7 @@ from harness.buffers import (
     expected_shape,
 )
 from harness.exr import ExrError, read_channels, read_size, write_capture, write_channels, write_exr
+from harness.guides import constant_depth, one_object, pinhole_position, zero_motion
 from harness.hookspecs import hookimpl
 from harness.images import display_variance, encode_srgb, write_png
 from harness.numba_cache import configure_numba_cache
@@ -52,6 +53,10 @@ __version__ = "0.1.0"
 configure_numba_cache()
 
 __all__ = [
+    "constant_depth",
+    "one_object",
+    "pinhole_position",
+    "zero_motion",
     "AdaptiveRenderer",
     "CHANNELS",
     "CameraPath",

@@ -91,7 +91,19 @@ class JobResult:
     outputs: dict = field(default_factory=dict)
 
 
-def run_job(
+def run_job(registry, job: Job, inputs: GroupInputs, metrics: MetricPlan, **options) -> JobResult:
+    """Run one job over every frame of its group (:func:`_run_job`), its rows naming the guides
+    the filter had (``guides``)."""
+    result = _run_job(registry, job, inputs, metrics, **options)
+    if inputs.frames:
+        spec = registry.get("filter", job.filter)
+        guides = spec.guides_used(inputs.frames[0].channels)
+        for row in result.rows:
+            row.guides = guides
+    return result
+
+
+def _run_job(
     registry,
     job: Job,
     inputs: GroupInputs,

@@ -130,6 +130,8 @@ class Plan:
         Runnable jobs grouped by render.
     skipped : list of (Job, str)
         Jobs that cannot run here, with the reason.
+    notes : list of str
+        One line each about choices the planner made (one seed for a deterministic renderer).
     settings : dict
         The planning inputs (tasks, resolution, frames, repeats, ...) for the manifest.
     """
@@ -137,6 +139,7 @@ class Plan:
     groups: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
     settings: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
 
     @property
     def jobs(self) -> list:
@@ -422,6 +425,10 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
             renderer_version=rspec.version,
             renderer_settings=json.dumps(plain(store.renderer_settings(rname)), sort_keys=True),
         )
+    if rspec is not None and rspec.deterministic and len(seeds) > 1:
+        plan.notes.append(f"scene {scene_spec.name!r}: renderer {rname!r} returns the same frames for every "
+                          f"seed: one seed ({seeds[0]}) instead of {len(seeds)}")
+        seeds = seeds[:1]
     for s in spp:
         for seed in seeds:
             group = None

@@ -74,8 +74,11 @@ def summary(df: pd.DataFrame) -> pd.DataFrame:
 def entry_labels(df: pd.DataFrame) -> pd.Series:
     """A leaderboard entry name per row: ``filter[preset]/backend``, plus ``name=value`` of the
     parameters that differ where one filter ran with several (a sweep), and ``@Nspp`` where the
-    table has several spp."""
+    table has several spp. An entry that ran a degraded mode (its ``guides`` name missing ones) is
+    marked ``[without X,Y]``, so it is never pooled or confused with the full filter."""
     label = df["filter"] + df["preset"].map(lambda p: f"[{p}]" if p else "") + "/" + df["backend"]
+    if "guides" in df:
+        label = label + df["guides"].fillna("").map(lambda g: f" [{g.split('; ', 1)[1]}]" if "; without" in g else "")
     for _, params in df.groupby("filter")["params"]:
         if params.nunique() > 1:
             label.loc[params.index] = label.loc[params.index] + " " + _varying(params)
@@ -214,7 +217,7 @@ def _compare(first: pd.DataFrame, second: pd.DataFrame, floor_column: str) -> tu
     if test.cells == 0:
         return "no common cells", math.nan
     if test.cells == 1:
-        return "one common cell: no test", math.nan
+        return "one input: no test", math.nan
     verdict = f"better (p{_p(test.p_value)})" if test.significant else f"not significant (p{_p(test.p_value)})"
     if "floor" in first:
         floor = first.merge(second[CELL_KEYS], on=CELL_KEYS)["floor"].mean()
@@ -248,7 +251,8 @@ def board_table(board: pd.DataFrame, metrics=None, intervals: str = "all") -> pd
     out = pd.DataFrame({"rank": board["rank"].astype(int), "entry": board["entry"]})
     for m in metrics:
         if intervals == "all" or m == rank_by:
-            out[m] = [_with_interval(v, lo, hi) for v, lo, hi in zip(board[m], board[f"{m}_lo"], board[f"{m}_hi"])]
+            out[m] = [_with_interval(v, lo, hi, n) for v, lo, hi, n in
+                      zip(board[m], board[f"{m}_lo"], board[f"{m}_hi"], board["cells"])]
         else:
             out[m] = board[m].map(lambda v: _format_float(v, "{:.4g}"))
         if m == rank_by:
@@ -262,9 +266,11 @@ def board_table(board: pd.DataFrame, metrics=None, intervals: str = "all") -> pd
     return out
 
 
-def _with_interval(value, low, high) -> str:
+def _with_interval(value, low, high, cells=2) -> str:
     if value is None or not np.isfinite(value):
         return "-"
+    if cells == 1:  # one scene, seed and frame (a captured frame): nothing to resample
+        return f"{value:.4g} (one input: no interval)"
     if not (np.isfinite(low) and np.isfinite(high)) or low == high:
         return f"{value:.4g}"
     return f"{value:.4g} [{low:.4g}, {high:.4g}]"

@@ -13,6 +13,9 @@ column is one field here.
 ``filter``, ``preset``    filter name and named preset ("" for defaults)
 ``params``                JSON of the filter parameters actually used
 ``backend``               ``cpu`` or ``cuda``
+``guides``                the guide channels the filter had (comma-separated), then ``; without X``
+                          naming those of its full algorithm that were missing (a degraded mode,
+                          :attr:`harness.FilterSpec.full_guides`); "" where it never ran
 ``spp``, ``seed``         nominal samples per pixel and seed of the render
 ``frame``                 frame index (-1 on the row of a job that never reached a frame)
 ``width``, ``height``     resolution in pixels
@@ -73,6 +76,7 @@ class Row:
     preset: str = _col("str")
     params: str = _col("str")
     backend: str = _col("str")
+    guides: str = _col("str")
     spp: int = _col("int64")
     seed: int = _col("int64")
     frame: int = _col("int64")

@@ -61,6 +61,11 @@ class FilterSpec:
     optional : iterable of str
         Channels the filter uses when the renderer provides them (e.g. ``direct``/``indirect``).
         The filter sees only ``requires`` and the ``optional`` channels that were rendered.
+    full_guides : iterable of str, optional
+        The guide channels of the full algorithm (the paper's), among ``requires`` and
+        ``optional``. A job whose frames lack some of them runs the filter's degraded mode: its
+        rows' ``guides`` column names the guides it had and ``without`` the others, and the
+        leaderboard marks its entry. None: ``requires`` (never degraded).
     temporal : bool
         True if the filter keeps history between frames of a sequence.
     backends : tuple of str
@@ -81,8 +86,10 @@ class FilterSpec:
         Conformance checks (``harness.testing.checks`` function names) this filter knowingly
         fails, each with the reason; they run as strict expected failures.
     trainer : callable, optional
-        For learned filters: ``trainer(seed=0, output=None, quick=False) -> pathlib.Path``
-        trains the model and writes its weights (``denoise-bench train NAME``).
+        For learned filters: ``trainer(seed=0, output=None, quick=False, **options) -> pathlib.Path``
+        trains the model and writes its weights (``denoise-bench train NAME [-o KEY=VALUE ...]``);
+        ``options`` are the trainer's own (a trainer without them need not accept any; an unknown
+        one is a ``ValueError``).
     stage_timing : bool
         True if the filter object sets ``stage_ms`` (dict of stage name to milliseconds of the
         last call; see :class:`harness.protocols.StageTimedFilter`); the harness stores it with
@@ -93,6 +100,14 @@ class FilterSpec:
         True if every output value is a convex combination of input radiance (non-negative
         weights summing to one): each output channel then lies within [min, max] of the input's
         colour since the last ``reset()`` or camera cut, and ``denoise-bench stress`` checks it.
+    range_gain : float
+        The local range bound the stress battery checks on every filter (``local_range``):
+        each output pixel's magnitude is at most ``range_gain`` times the largest input
+        radiance magnitude within ``range_radius`` pixels of it (since the last ``reset()`` or
+        camera cut). Default :data:`RANGE_GAIN` (4).
+    range_radius : int, optional
+        Half-width of that window in pixels (a square); None (the default) takes the whole
+        frame, the right window for filters whose support is wide (à-trous, large windows).
     stress_exempt : mapping of str to str
         Stress cases (:mod:`harness.stress.cases` names, or ``fnmatch`` patterns such as
         ``"guide-normal-*"``) that do not apply to this filter, each with the measured reason.
@@ -105,6 +120,7 @@ class FilterSpec:
     factory: Callable[..., Any]
     requires: frozenset = frozenset({"color"})
     optional: frozenset = frozenset()
+    full_guides: frozenset | None = None
     temporal: bool = False
     backends: tuple = ("cpu",)
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -116,6 +132,8 @@ class FilterSpec:
     stage_timing: bool = False
     tasks: frozenset = frozenset({"denoise"})
     convex: bool = False
+    range_gain: float = 4.0
+    range_radius: int | None = None
     stress_exempt: Mapping[str, str] = field(default_factory=dict)
     param_specs: Mapping[str, Param] = field(default_factory=dict, init=False, compare=False)
 
@@ -123,6 +141,11 @@ class FilterSpec:
         owner = f"filter {self.name!r}"
         object.__setattr__(self, "requires", _check_channels(owner, set(self.requires) | {"color"}))
         object.__setattr__(self, "optional", _check_channels(f"filter {self.name!r}", self.optional) - self.requires)
+        full = self.requires - {"color"} if self.full_guides is None else frozenset(self.full_guides)
+        if full - self.requires - self.optional:
+            raise ValueError(f"{owner}: full_guides {sorted(full - self.requires - self.optional)} are neither "
+                             "required nor optional")
+        object.__setattr__(self, "full_guides", full)
         bad = [b for b in self.backends if b not in BACKENDS]
         if bad or not self.backends:
             raise ValueError(
@@ -139,6 +162,11 @@ class FilterSpec:
             raise ValueError(f"{owner}: stress_exempt needs a measured reason for each case, none given for {empty}")
         object.__setattr__(self, "presets", _frozen_mapping({k: _frozen_mapping(v) for k, v in self.presets.items()}))
         object.__setattr__(self, "tasks", _check_tasks(owner, self.tasks))
+        if not (isinstance(self.range_gain, (int, float)) and 1.0 <= self.range_gain < float("inf")):
+            raise ValueError(f"{owner}: range_gain must be a finite number >= 1, got {self.range_gain!r}")
+        if self.range_radius is not None and (isinstance(self.range_radius, bool) or not isinstance(
+                self.range_radius, int) or self.range_radius < 0):
+            raise ValueError(f"{owner}: range_radius must be None or an integer >= 0, got {self.range_radius!r}")
         for preset, values in self.presets.items():
             self.check_params(values, context=f"preset {preset!r}")
 
@@ -168,11 +196,20 @@ class FilterSpec:
             raise ValueError(f"{where} has no parameter(s) {unknown}; parameters: {sorted(self.param_specs)}")
         return {k: self.param_specs[k].check(v, owner=f"{where}: parameter {k!r}") for k, v in values.items()}
 
+    def guides_used(self, channels) -> str:
+        """The ``guides`` column of a job whose frames hold ``channels``: the guide channels the
+        filter reads (comma-separated), then ``; without X,Y`` where some of :attr:`full_guides`
+        are missing (the degraded mode)."""
+        used = sorted((self.requires | self.optional) & set(channels) - {"color"})
+        missing = sorted(self.full_guides - set(channels))
+        return ",".join(used) + (f"; without {','.join(missing)}" if missing else "")
+
     def declarations(self) -> dict:
         """What the spec declares, as plain JSON-able data."""
         return {
             "requires": sorted(self.requires),
             "optional": sorted(self.optional),
+            "full_guides": sorted(self.full_guides),
             "temporal": self.temporal,
             "backends": list(self.backends),
             "params": dict(self.params),
@@ -182,6 +219,8 @@ class FilterSpec:
             "stage_timing": self.stage_timing,
             "tasks": sorted(self.tasks),
             "convex": self.convex,
+            "range_gain": self.range_gain,
+            "range_radius": self.range_radius,
             "stress_exempt": dict(self.stress_exempt),
         }
 
@@ -221,6 +260,9 @@ class RendererSpec:
         (``captured``); chunked renderers' variance is estimated by the harness instead.
     tasks : iterable of str
         Benchmark tasks whose input and reference it makes (:data:`TASKS`).
+    deterministic : bool
+        True if it returns the same frames for every seed (captured frames): the planner then
+        runs one seed, and the leaderboard's tests resample over frames and scenes only.
     """
 
     name: str
@@ -235,6 +277,7 @@ class RendererSpec:
     chunked: bool = False
     tasks: frozenset = frozenset({"denoise"})
     reference_noise: bool = False
+    deterministic: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
@@ -250,6 +293,7 @@ class RendererSpec:
             "reference_spp": self.reference_spp,
             "chunked": self.chunked,
             "reference_noise": self.reference_noise,
+            "deterministic": self.deterministic,
             "tasks": sorted(self.tasks),
         }
 

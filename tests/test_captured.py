@@ -418,3 +418,22 @@ def test_preset_channels_are_optional_but_sidecar_channels_required(tmp_path):
     _sidecar(tmp_path, 'preset = "blender"\nframes = 1\n[channels]\nnormal = "ViewLayer.Normal"\n')
     with pytest.raises(CaptureError, match="no layer 'ViewLayer.Normal' for channel 'normal'"):
         open_capture(tmp_path)
+
+
+def test_a_deterministic_renderer_runs_one_seed_and_says_so(registry, synthetic, tmp_path):
+    """Captured frames are the same for every seed: three seeds were three runs of one input and
+    zero-width intervals. The planner runs the first seed and says so in one line."""
+    from harness.plan import make_plan
+    from harness.renders import RenderStore, scene_selection
+
+    assert registry.get("renderer", "captured").deterministic
+    assert not registry.get("renderer", "synthetic").deterministic
+    frames, refs = synthetic
+    write_capture(tmp_path / "cap", frames, refs, spp=2)
+    store = RenderStore(registry)
+    specs = scene_selection(registry, store, ["synthetic-edges"], [tmp_path / "cap"], ["denoise"])
+    plan = make_plan(registry, store, specs, ["passthrough"], ["ssim"], spp=(2,), seeds=(0, 1, 2), frames=1)
+    seeds = {(j.scene, j.seed) for j in plan.jobs}
+    assert seeds == {("synthetic-edges", 0), ("synthetic-edges", 1), ("synthetic-edges", 2), ("synthetic-moving", 0)}
+    assert plan.notes == ["scene 'synthetic-moving': renderer 'captured' returns the same frames for every seed: one seed (0) "
+                          "instead of 3"]

@@ -326,7 +326,7 @@ def test_schedule_and_coefficients():
 
 def test_registered_by_entry_point():
     spec = load_plugins().filters["eaw"]
-    assert spec.requires == {"color", "normal", "position"}
+    assert spec.requires == {"color", "normal"} and spec.full_guides == {"normal", "position"}
     assert set(spec.backends) == {"cpu", "cuda"} and not spec.temporal
     assert dict(spec.params) == DEFAULTS
 

@@ -30,7 +30,7 @@ torch = pytest.importorskip("torch")
 TR = pytest.importorskip("plugins.filters.lbf.torch_ref")
 
 ROOT = Path(__file__).resolve().parents[1]
-REQUIRED = {"color", "normal", "albedo", "position", "variance"}
+FULL = {"color", "normal", "albedo", "position", "variance"}  # the paper's inputs
 
 
 def cpu_stages(inputs: FE.Inputs, radius: int = 5, model: LBFWeights | None = None):
@@ -247,8 +247,9 @@ def test_properties():
 def test_spec_and_parameters():
     reg = load_plugins()
     spec = reg.filters["lbf"]
-    assert spec.requires == frozenset(REQUIRED)
-    assert spec.optional == frozenset({"visibility", "spp"})
+    assert spec.requires == frozenset({"color", "normal", "albedo"})  # the others: degraded modes
+    assert spec.optional == frozenset({"position", "variance", "depth", "visibility", "spp"})
+    assert spec.full_guides == frozenset(FULL) - {"color"}
     assert spec.backends == ("cpu", "cuda") and spec.trainer is not None
     filt = spec.factory(backend="cpu", **spec.params)
     assert filt.radius == 5

@@ -92,5 +92,27 @@ def test_board_table_shows_intervals_and_the_verdict_next_to_the_ranking_metric(
 def test_single_seed_single_frame_gives_points_not_intervals():
     b = board(rows("x", 0.3, seeds=(0,), frames=1, scenes=("a",)), rows("y", 0.1, seeds=(0,), frames=1, scenes=("a",)))
     assert (b.display_rmse_lo == b.display_rmse).all() and (b.display_rmse_hi == b.display_rmse).all()
-    assert b.vs_next[0] == "one common cell: no test"
+    assert b.vs_next[0] == "one input: no test"
     assert isinstance(b, pd.DataFrame)
+
+
+def test_one_input_is_written_as_such_not_as_an_interval():
+    """A captured frame run once (one scene, seed and frame): the table says there is nothing to
+    resample instead of showing a zero-width interval."""
+    b = board(rows("x", 0.3, seeds=(0,), frames=1, scenes=("a",)), rows("y", 0.1, seeds=(0,), frames=1, scenes=("a",)))
+    b.attrs.update(rank_by="display_rmse")
+    table = board_table(b.drop(columns="task"))
+    assert table.display_rmse[0].endswith(" (one input: no interval)") and "[" not in table.display_rmse[0]
+    assert table["vs next"][0] == "one input: no test"
+    several = board(rows("x", 0.3, seeds=(0,), frames=3, scenes=("a",)))
+    several.attrs.update(rank_by="display_rmse")
+    assert "no interval" not in board_table(several.drop(columns="task")).display_rmse[0]
+
+
+def test_degraded_entries_are_marked_with_the_guides_they_lacked():
+    full = rows("svgf", 0.1)
+    degraded = [dict(r, guides="albedo,normal; without depth,motion,object_id", scene="c") for r in rows("svgf", 0.2)]
+    for r in full:
+        r["guides"] = "albedo,depth,motion,normal,object_id"
+    labels = entry_labels(make_table(full + degraded))
+    assert set(labels) == {"svgf/cpu", "svgf/cpu [without depth,motion,object_id]"}

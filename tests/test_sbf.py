@@ -432,7 +432,8 @@ def test_parameter_validation():
 
 def test_registered_spec(registry):
     spec = registry.filters["sbf"]
-    assert {"color", "normal", "albedo", "depth", "variance"} <= spec.requires
+    assert spec.requires == {"color", "normal", "albedo"}  # depth and variance: degraded modes without them
+    assert spec.full_guides == {"normal", "albedo", "depth", "variance"} and {"depth", "variance"} <= spec.optional
     assert spec.adaptive and set(spec.backends) == {"cpu", "cuda"}
     assert spec.params["mode"] == "fixed" and spec.params["extra_spp"] == 8.0
     for key in ("passes", "max_spp_per_pixel", "scales", "sure_scale"):

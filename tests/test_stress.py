@@ -118,7 +118,8 @@ def test_case_selection_by_name_group_and_pattern():
     assert [c.name for c in select_cases(["shape-1x1"])] == ["shape-1x1"]
     assert {c.group for c in select_cases(["policy"])} == {"policy"}
     assert {c.name for c in select_cases(["guide-normal-*"])} == {
-        "guide-normal-nan", "guide-normal-inf", "guide-normal-neginf", "guide-normal-max", "guide-normal-zero"}
+        "guide-normal-nan", "guide-normal-inf", "guide-normal-neginf", "guide-normal-max", "guide-normal-zero",
+        "guide-normal-nan-all"}
     assert not any(c.heavy for c in select_cases(heavy=False))
     assert select_cases(["light"]) == select_cases(heavy=False) and select_cases(["all"]) == list(CASES.values())
     with pytest.raises(ValueError, match=r"no stress case matches 'nope' \(.*a group: colour, guide.*'all'\)$"):
@@ -170,6 +171,53 @@ def test_a_convex_filter_must_stay_in_the_input_range_and_others_within_the_gain
 
     result = run(spec_of(Blowup), "fireflies-1e3")
     assert result.status == "out_of_bounds" and "exceeds 1000 x the largest input" in result.message
+
+
+class Demodulate(Copy):
+    """Demodulates by ``max(albedo, 1e-3)``, blurs over the whole frame and remodulates: what SVGF
+    did on a zero-albedo conductor before issue 32."""
+
+    def __call__(self, frame, sampler=None):
+        albedo = np.maximum(frame["albedo"].astype(np.float64), 1e-3)
+        irradiance = (frame["color"] / albedo).mean(axis=(0, 1))
+        return (albedo * irradiance).astype(np.float32)
+
+
+def test_the_local_range_property_catches_an_amplifying_demodulation():
+    spec = spec_of(Demodulate, requires={"color", "albedo"})
+    assert run(spec, "fireflies-1e3").status == "pass"  # ordinary albedo: within 4x of the input
+    result = run(spec, "guide-albedo-conductor")
+    assert result.status == "out_of_bounds" and "4 x the largest input magnitude within the frame" in result.message
+    assert run(spec_of(Demodulate, requires={"color", "albedo"}, range_gain=1e6), "guide-albedo-conductor").status \
+        == "pass"
+
+
+def test_a_declared_window_makes_the_range_local():
+    class Shift(Copy):
+        """Moves the image by 5 columns: within the frame's range, not within 2 pixels'."""
+
+        def __call__(self, frame, sampler=None):
+            color = frame["color"]
+            return np.concatenate([np.repeat(color[:, :1], 5, axis=1), color[:, :-5]], axis=1).astype(np.float32)
+
+    assert run(spec_of(Shift), "fireflies-1e3").status == "pass"
+    result = run(spec_of(Shift, range_radius=2), "fireflies-1e3")
+    assert result.status == "out_of_bounds" and "within 2 pixels" in result.message
+    assert run(spec_of(Shift, range_radius=5, range_gain=1.0), "fireflies-1e3").status == "pass"
+
+
+def test_window_max_is_the_largest_value_of_each_square():
+    from harness.stress.properties import window_max
+
+    values = np.random.default_rng(0).normal(size=(7, 9))
+    got = window_max(values, 2)
+    for i in range(7):
+        for j in range(9):
+            assert got[i, j] == values[max(i - 2, 0):i + 3, max(j - 2, 0):j + 3].max()
+    with pytest.raises(ValueError, match="range_gain"):
+        spec_of(Copy, range_gain=0.5)
+    with pytest.raises(ValueError, match="range_radius"):
+        spec_of(Copy, range_radius=-1)
 
 
 def test_a_filter_that_shifts_a_flat_image_fails_the_mean_property():

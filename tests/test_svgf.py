@@ -51,7 +51,8 @@ def _svgf(registry, **params):
 def test_spec_declares_paper_defaults_and_presets(registry):
     spec = registry.filters["svgf"]
     assert spec.temporal
-    assert {"color", "albedo", "normal", "depth", "object_id", "motion"} <= spec.requires
+    assert spec.requires == {"color", "albedo", "normal"}  # the others: degraded modes without them
+    assert spec.full_guides == {"albedo", "normal", "depth", "object_id", "motion"}
     assert spec.params["iterations"] == 5 and spec.params["alpha_color"] == 0.2
     assert spec.params["sigma_z"] == 1.0 and spec.params["sigma_n"] == 128.0 and spec.params["sigma_l"] == 4.0
     falcor = spec.presets["falcor"]
@@ -260,6 +261,40 @@ def test_bad_albedo_gives_finite_output(registry, value):
         out = filt(frame.replace(color=color, albedo=albedo))
         assert np.all(np.isfinite(out))
         assert np.all(out <= 1e6 * color.max())
+
+
+def _conductor_frame(k, h=24, w=32):
+    """A diffuse wall (albedo 0.6) with a conductor in the middle: albedo 0 (as Mitsuba's albedo
+    AOV reports metals) while its colour, a reflection, is as bright as the wall's."""
+    rng = np.random.default_rng(10 + k)
+    frame = _flat_frame(h, w, 0.5, camera_cut=k == 0)
+    albedo = np.full((h, w, 3), 0.6, np.float32)
+    albedo[6:18, 10:22] = 0.0
+    color = (0.6 * rng.exponential(1.0, (h, w, 1)) * np.ones(3)).astype(np.float32)
+    return frame.replace(color=color, albedo=albedo)
+
+
+def test_zero_albedo_conductor_is_not_amplified(registry):
+    """Demodulating by the albedo floor (1e-3) made a conductor's colour 1000 times brighter and
+    the à-trous passes spread it over the wall (issue 32: outputs 200 times the input's maximum).
+    Pixels whose albedo is below 0.01 in every component are now not demodulated."""
+    filt = _svgf(registry)
+    for k in range(3):
+        frame = _conductor_frame(k)
+        out = filt(frame)
+        assert np.all(np.isfinite(out))
+        assert out.max() <= 2.0 * frame["color"].max(), (out.max(), frame["color"].max())
+
+
+def test_ordinary_albedo_is_demodulated_as_before(registry):
+    """Pixels with an ordinary albedo are demodulated by it: a noise-free frame whose colour is its
+    albedo times a smooth irradiance comes back within float32 round-off, textured or not."""
+    h, w = 12, 14
+    frame = _flat_frame(h, w, 0.5, camera_cut=True)
+    albedo = np.random.default_rng(2).uniform(0.02, 0.9, (h, w, 3)).astype(np.float32)
+    color = (albedo * np.float32(0.8)).astype(np.float32)
+    out = _svgf(registry)(frame.replace(color=color, albedo=albedo))
+    np.testing.assert_allclose(out, color, rtol=1e-5)
 
 
 def test_colour_is_the_authority_over_direct(registry, renderer):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 import json
 import sys
 import time
@@ -113,6 +114,8 @@ def _announce(args):
         estimate = plan.settings.get("estimate", {}).get("announcement")
         if estimate:
             print(f"denoise-bench run: {estimate}", file=sys.stderr)
+        for note in plan.notes:
+            print(f"denoise-bench run: {note}", file=sys.stderr)
         print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
               f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
 
@@ -520,6 +523,10 @@ def cmd_train(registry, args) -> int:
     spec = registry.get("filter", args.filter)
     if spec.trainer is None:
         raise ValueError(f"filter {spec.name!r} is not trainable")
-    path = spec.trainer(seed=args.seed, output=args.output, quick=args.quick)
-    print(f"{spec.name}: weights written to {path}")
+    options = dict(args.option)
+    keywords = inspect.signature(spec.trainer).parameters.values()
+    if options and not any(p.kind is p.VAR_KEYWORD for p in keywords):
+        raise ValueError(f"filter {spec.name!r}: its trainer takes no options (got {sorted(options)})")
+    path = spec.trainer(seed=args.seed, output=args.output, quick=args.quick, **options)
+    print(f"{spec.name}: wrote {path}")
     return 0

@@ -138,6 +138,17 @@ def param(value: str) -> tuple[str, str, object]:
     return name, field, parsed
 
 
+def option(value: str) -> tuple[str, object]:
+    """``KEY=VALUE`` with a JSON value (a bare word is a string)."""
+    key, sep, raw = value.partition("=")
+    if not key or not sep:
+        raise argparse.ArgumentTypeError(f"must look like KEY=VALUE, got {value!r}")
+    try:
+        return key, json.loads(raw)
+    except json.JSONDecodeError:
+        return key, raw
+
+
 def grid(value: str) -> tuple[str, str, list]:
     """``FILTER.NAME=V1,V2,...``: a swept parameter, each value JSON (a bare word is a string)."""
     name, field, _ = param(value)
@@ -462,6 +473,9 @@ def build_parser() -> Parser:
     train.add_argument("--output", type=Path, default=None,
                        help="weights file (default: the filter's shipped location)")
     train.add_argument("--quick", action="store_true", help="a short run (minutes) for smoke tests")
+    train.add_argument("-o", "--option", type=option, action="append", default=[], metavar="KEY=VALUE",
+                       help="an option of the filter's trainer (JSON value; repeatable), e.g. aa_rnn's "
+                            "-o data=DIR -o sequences=1900 (see the filter's docs)")
     _add_common(train)
     return parser
 

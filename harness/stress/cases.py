@@ -5,7 +5,8 @@ filter reads) and says which properties of :mod:`harness.stress.properties` hold
 
 * every case: the output is finite wherever the input radiance is finite, and its magnitude
   stays within a bound (within [min, max] of the input colour for filters that declare
-  ``convex``, else within ``GAIN_MAX`` times the largest input magnitude);
+  ``convex``, else within ``GAIN_MAX`` times the largest input magnitude), and within the
+  filter's declared gain of its input's local range (``local_range``);
 * ``flat`` cases (constant colour over constant guides): the output's mean equals the input's;
 * ``energy`` cases (a long static sequence): the output's mean stays near the clean image's
   and does not drift;
@@ -209,6 +210,15 @@ def _guide(name: str, value, where: str = "scattered"):
     return _each(make)
 
 
+def _conductor(channels, t):
+    frame = _scene(channels, t)
+    if "albedo" not in frame:
+        return frame
+    albedo = np.array(frame["albedo"], copy=True)
+    albedo[:, frame.width // 2:] = 0.0
+    return frame.replace(albedo=albedo)
+
+
 def _all_background(channels, t):
     frame = _scene(channels, t, noise=False)
     frame = with_background(frame, np.ones(frame.shape, bool))
@@ -327,6 +337,8 @@ def _battery() -> list[StressCase]:
         StressCase("guide-depth-zero", "guide", "5% of pixels at depth 0", _guide("depth", 0.0), channel="depth"),
         StressCase("guide-albedo-zero", "guide", "albedo 0 everywhere (demodulation divides by it)",
                    _guide("albedo", 0.0, "all"), channel="albedo"),
+        StressCase("guide-albedo-conductor", "guide", "albedo 0 on one surface whose colour is not (a renderer's "
+                   "albedo on conductors)", _each(_conductor), channel="albedo"),
         StressCase("guide-variance-negative", "guide", "5% of pixels with variance -1",
                    _guide("variance", -1.0), channel="variance"),
         StressCase("guide-motion-outside", "guide", "every motion vector (1e6, -1e6) pixels, far outside the image",

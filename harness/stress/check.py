@@ -101,7 +101,8 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
         filt.reset()
     except (Exception, SystemExit) as exc:
         return _failed(result, Failure("error", f"filter could not be built: {_why(exc)}"), [], memory)
-    monitor = Monitor(convex=spec.convex, flat=flat, energy=energy, clean_mean=sequence.clean_mean)
+    monitor = Monitor(convex=spec.convex, flat=flat, energy=energy, clean_mean=sequence.clean_mean,
+                      range_gain=getattr(spec, "range_gain", 4.0), range_radius=getattr(spec, "range_radius", None))
     visible = spec.requires | spec.optional
     times: list[float] = []
     for t, frame in enumerate(sequence):

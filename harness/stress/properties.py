@@ -11,6 +11,12 @@
     absolute one of the smallest normal float32, so flushing subnormals to zero is allowed).
     Where the filter reads ``direct``/``indirect``, the range is that of their sum's bounds. Any
     other filter's output magnitude stays within ``GAIN_MAX`` times the largest input magnitude.
+``local_range``
+    Every filter: each output pixel's magnitude is at most ``range_gain`` times the largest
+    input radiance magnitude within ``range_radius`` pixels of it (the whole frame where the
+    radius is None), over the frames since the last ``reset()`` or camera cut, plus the smallest
+    normal float32 (both declared by the filter's spec; the default gain is 4). It catches what
+    the gain bound lets through: a demodulation that amplified a conductor's colour 200 times.
 ``flat``
     On flat frames (constant colour over constant guides) the output's mean equals the input's
     within ``FLAT_RTOL`` (relative) plus the smallest normal float32.
@@ -56,6 +62,19 @@ def radiance_parts(frame: Frame) -> list[np.ndarray]:
     return [frame["color"]]
 
 
+def window_max(values: np.ndarray, radius: int) -> np.ndarray:
+    """The largest value of ``values`` (H, W) within a square of half-width ``radius`` around each pixel."""
+    out = values
+    for axis in (0, 1):
+        n = out.shape[axis]
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (radius, radius)
+        padded = np.pad(out, pad, mode="constant", constant_values=-np.inf)
+        out = np.lib.stride_tricks.sliding_window_view(padded, 2 * radius + 1, axis=axis).max(axis=-1)
+        assert out.shape[axis] == n
+    return out
+
+
 class Monitor:
     """Checks the outputs of one filter over one sequence.
 
@@ -69,8 +88,10 @@ class Monitor:
         Mean RGB of the noise-free image (``energy``).
     """
 
-    def __init__(self, *, convex: bool, flat: bool = False, energy: bool = False, clean_mean=None):
+    def __init__(self, *, convex: bool, flat: bool = False, energy: bool = False, clean_mean=None,
+                 range_gain: float = 4.0, range_radius: int | None = None):
         self.convex, self.flat, self.energy = convex, flat, energy
+        self.range_gain, self.range_radius = float(range_gain), range_radius
         self.clean_mean = None if clean_mean is None else np.asarray(clean_mean, np.float64)
         self.means: list[np.ndarray] = []
         self.restart()
@@ -80,6 +101,7 @@ class Monitor:
         self.low = np.full(3, np.inf)
         self.high = np.full(3, -np.inf)
         self.peak = 0.0
+        self.local = None  # largest input magnitude per pixel (over the window), since the restart
 
     def check(self, t: int, frame: Frame, out: np.ndarray) -> Failure | None:
         """Check output ``out`` of frame ``t``; the first property that fails, or None."""
@@ -97,6 +119,8 @@ class Monitor:
                                         f"radiance is finite (first at row {i}, column {j}: {out[i, j].tolist()})", t)
         self._widen(parts, finite)
         failure = self._bounds(out, finite, t)
+        if failure is None:
+            failure = self._local_range(parts, out, finite, t)
         if failure is None and self.flat:
             failure = self._flat(color, out, t)
         if self.energy:
@@ -138,6 +162,27 @@ class Monitor:
             return Failure("out_of_bounds", f"output magnitude {peak:.6g} exceeds {GAIN_MAX:g} x the largest input "
                                             f"magnitude {self.peak:.6g}", t)
         return None
+
+    def _local_range(self, parts, out, finite, t) -> Failure | None:
+        magnitude = np.zeros(finite.shape)
+        for part in parts:
+            magnitude += np.abs(np.where(finite[..., None], part, 0.0).astype(np.float64)).max(axis=-1)
+        local = np.full(finite.shape, magnitude.max()) if self.range_radius is None else \
+            window_max(magnitude, self.range_radius)
+        if self.local is None or self.local.shape != local.shape:
+            self.local = local
+        else:
+            self.local = np.maximum(self.local, local)
+        got = np.where(finite, np.abs(out.astype(np.float64)).max(axis=-1), 0.0)
+        bound = self.range_gain * self.local + TINY
+        over = got > bound
+        if not over.any():
+            return None
+        i, j = np.unravel_index(int(np.argmax(np.where(over, got / bound, 0.0))), got.shape)
+        window = "the frame" if self.range_radius is None else f"{self.range_radius} pixels"
+        return Failure("out_of_bounds", f"{int(over.sum())} pixels beyond {self.range_gain:g} x the largest input "
+                                        f"magnitude within {window} (first at row {i}, column {j}: {got[i, j]:.6g} "
+                                        f"against {self.local[i, j]:.6g})", t)
 
     def _flat(self, color, out, t) -> Failure | None:
         want = color.astype(np.float64).mean(axis=(0, 1))

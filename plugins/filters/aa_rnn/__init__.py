@@ -19,11 +19,19 @@ PARAMS = {
 }
 
 
-def train_aa_rnn(seed: int = 0, output=None, quick: bool = False):
+def train_aa_rnn(seed: int = 0, output=None, quick: bool = False, **options):
     """Train the network and write its weights (``denoise-bench train aa_rnn``).
 
-    See :func:`plugins.filters.aa_rnn.train.train`.
+    Without options: the recipe of the shipped weights, :func:`plugins.filters.aa_rnn.train.train`.
+    With ``-o data=DIR ...``: the paper-scale dataset and training,
+    :func:`plugins.filters.aa_rnn.dataset_training.run_options`.
     """
+    if options:
+        from .dataset_training import run_options
+
+        if quick:
+            raise ValueError("aa_rnn trainer: --quick is the default recipe's; size a dataset run with its options")
+        return run_options(seed, output, options)
     from .train import train
 
     return train(seed=seed, output=output, quick=quick)

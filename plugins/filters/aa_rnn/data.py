@@ -24,28 +24,41 @@ REFERENCE_SPP = 64
 
 def render_sequence(seed: int, frames: int, resolution: tuple, renderer=None) -> np.ndarray:
     """The prepared inputs and tone-mapped reference of training scene ``seed``: (F, 12, H, W) float32."""
+    if renderer is None:
+        renderer = load_plugins().get("renderer", "raster").factory(jitter=True)
+    scene = make_scene(seed, frames, resolution)
+    rendered = [renderer.render(scene, t, channels={"normal", "depth", "motion"}, resolution=resolution)
+                for t in range(frames)]
+    refs = [renderer.reference(scene, t, spp=REFERENCE_SPP, resolution=resolution) for t in range(frames)]
+    return to_planes(np.stack([f["color"] for f in rendered]), np.stack([f["normal"] for f in rendered]),
+                     np.stack([f["depth"] for f in rendered]), np.stack([f["motion"] for f in rendered]),
+                     np.array([f.meta.jitter for f in rendered], np.float32), np.stack(refs))
+
+
+def to_planes(color, normal, depth, motion, jitter, reference) -> np.ndarray:
+    """A sequence's network inputs and tone-mapped reference as one (F, 12, H, W) float32 array.
+
+    Parameters
+    ----------
+    color, normal, reference : array (F, H, W, 3)
+    depth : array (F, H, W)
+    motion : array (F, H, W, 2)
+    jitter : array (F, 2)
+        As the ``raster`` renderer gives them; the inputs go through :func:`.network.prepare`, the
+        same function as at inference.
+    """
     import torch
 
     from .network import prepare, tonemap
 
-    if renderer is None:
-        renderer = load_plugins().get("renderer", "raster").factory(jitter=True)
-    scene = make_scene(seed, frames, resolution)
-    out = []
-    for t in range(frames):
-        frame = renderer.render(scene, t, channels={"normal", "depth", "motion"}, resolution=resolution)
-        ref = renderer.reference(scene, t, spp=REFERENCE_SPP, resolution=resolution)
+    def tensor(a):
+        a = np.asarray(a, np.float32)
+        return torch.from_numpy(np.ascontiguousarray(a.reshape(a.shape[:3] + (-1,)).transpose(0, 3, 1, 2)))
 
-        def tensor(a):
-            a = np.asarray(a, np.float32)
-            planes = a.reshape(a.shape[0], a.shape[1], -1).transpose(2, 0, 1)
-            return torch.from_numpy(np.array(planes, np.float32))[None]
-
-        inputs = prepare(tensor(frame["color"]), tensor(frame["normal"]), tensor(frame["depth"]),
-                         tensor(frame["motion"]), torch.tensor([frame.meta.jitter], dtype=torch.float32))
-        planes = torch.cat([inputs["u"], inputs["normal"], inputs["z"], inputs["flow"], tonemap(tensor(ref))], 1)
-        out.append(planes[0].numpy())
-    return np.ascontiguousarray(np.stack(out), np.float32)
+    inputs = prepare(tensor(color), tensor(normal), tensor(depth), tensor(motion),
+                     torch.from_numpy(np.asarray(jitter, np.float32)))
+    planes = torch.cat([inputs["u"], inputs["normal"], inputs["z"], inputs["flow"], tonemap(tensor(reference))], 1)
+    return np.ascontiguousarray(planes.numpy(), np.float32)
 
 
 def dataset_digest(sequences: list[np.ndarray], settings: dict) -> str:

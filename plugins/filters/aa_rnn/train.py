@@ -13,7 +13,9 @@ through the recurrence. Loss, on tone-mapped values ``u = x / (1 + x)``: per fra
 compares frame differences, so flicker and lag cost), frames weighted ``t + 1`` (later frames
 count more), mean over pixels and channels. Adam (learning rate 5e-4, cosine decay to 1e-5),
 gradient norm clipped at 1. The validation L1 of whole sequences is measured every
-``eval_every`` steps and the best step is kept.
+``eval_every`` steps; the weights of the last step are written, with the step of the lowest
+validation L1 recorded beside them (``best_step``). (This recipe made the shipped weights; the
+paper-scale recipe, :mod:`.dataset_training`, writes the best step's weights.)
 
 Reproducibility: scene seeds, crops, augmentation and batch order come from one seeded NumPy
 generator, the weights' initialisation from ``torch.manual_seed``, and PyTorch runs on one
@@ -40,7 +42,6 @@ from .weights import (
     DEFAULT_LAYERS,
     WeightsError,
     arrays_digest,
-    load_into,
     load_weights,
     model_arrays,
     save_weights,
@@ -178,9 +179,10 @@ def _init(model: AARNN) -> None:
 
 def fit(model: AARNN, train: list[np.ndarray], val: list[np.ndarray], config: TrainConfig,
         rng: np.random.Generator) -> dict:
-    """Train ``model`` in place; returns the history (``best_step``, ``val_l1`` per evaluation)."""
+    """Train ``model`` in place; returns the history (``best_step``, the step of the lowest validation
+    L1, and ``val_l1`` per evaluation). The model keeps the last step's weights."""
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
-    best = (evaluate(model, val), 0, model_arrays(model))
+    best = (evaluate(model, val), 0)
     history = {"val_l1": [[0, best[0]]]}
     for step in range(1, config.steps + 1):
         lr = config.lr_final + 0.5 * (config.lr - config.lr_final) * (1.0 + math.cos(math.pi * step / config.steps))
@@ -206,8 +208,7 @@ def fit(model: AARNN, train: list[np.ndarray], val: list[np.ndarray], config: Tr
             history["val_l1"].append([step, err])
             log.info("aa_rnn step %d: loss %.5f, validation L1 %.5f", step, float(loss.detach()), err)
             if err < best[0]:
-                best = (err, step, model_arrays(model))
-    load_into(model, best[2])
+                best = (err, step)
     history["best_step"] = best[1]
     return history
 

@@ -66,10 +66,11 @@ def arrays_digest(arrays: dict[str, np.ndarray]) -> str:
 
 
 def model_arrays(model) -> dict[str, np.ndarray]:
-    """The weights of an :class:`.network.AARNN` as named float32 arrays."""
+    """The weights of an :class:`.network.AARNN` as named float32 arrays (copies: a view of a CPU
+    tensor would follow the training that goes on changing it)."""
     arrays = {f"conv{k}": conv.weight.detach().cpu().numpy() for k, conv in enumerate(model.body)}
     arrays["head"] = model.head.weight.detach().cpu().numpy()
-    return {k: np.ascontiguousarray(v, np.float32) for k, v in arrays.items()}
+    return {k: np.array(v, dtype=np.float32, order="C", copy=True) for k, v in arrays.items()}
 
 
 def load_into(model, arrays: dict[str, np.ndarray]) -> None:

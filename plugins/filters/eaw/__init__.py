@@ -2,7 +2,10 @@
 
 Five (by default) à-trous iterations of a 5x5 B3-spline kernel with hole spacing ``2**i``,
 each tap weighted by edge-stopping functions of colour, normal and world position.
-See ``README.md`` beside this file for the parameters and the choices made.
+Without ``position`` (a capture of colour, albedo and normal) the position stop runs on the
+albedo instead (an albedo edge stop), or on a pinhole position from ``depth`` where there is no
+albedo (:func:`.filter.position_stand_in`). See ``README.md`` beside this file for the
+parameters and the choices made.
 """
 
 from harness import FilterSpec, hookimpl
@@ -25,7 +28,9 @@ def register_filters():
             name="eaw",
             version=VERSION,
             factory=make_filter,
-            requires={"color", "normal", "position"},
+            requires={"color", "normal"},
+            optional={"position", "albedo", "depth"},
+            full_guides={"normal", "position"},
             temporal=False,
             convex=True,  # renormalised non-negative weights (checked by the stress battery)
             backends=("cpu", "cuda"),

@@ -6,13 +6,25 @@ Illumination Filtering", HPG 2010.
 
 from __future__ import annotations
 
-from harness import kernels, load_backend
+import numpy as np
+
+from harness import kernels, load_backend, pinhole_position
 
 from .layout import Buffers
 from .params import EAWParams, b3_kernel
 
 #: the backends, each a module of this package with ``run(frame, params, coefficients, taps, buffers)``
 BACKENDS = ("cpu", "cuda")
+
+
+def position_stand_in(frame) -> np.ndarray:
+    """What the position stop reads where the frame has no ``position``: the albedo (an albedo
+    edge stop, normalised like positions), else a pinhole position from ``depth`` (or from the
+    pixel grid at unit depth: then only the spatial extent of the à-trous kernel)."""
+    if "albedo" in frame:
+        albedo = np.nan_to_num(np.asarray(frame["albedo"], np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        return np.ascontiguousarray(albedo)
+    return pinhole_position(frame.shape, frame["depth"] if "depth" in frame else None)
 
 
 class EAWFilter:
@@ -46,6 +58,8 @@ class EAWFilter:
 
     def __call__(self, frame, sampler=None):
         # below kernels.SERIAL_MAX_PIXELS the CPU backend runs on one thread (see the README)
+        if "position" not in frame:
+            frame = frame.replace(position=position_stand_in(frame))
         with kernels.serial_below(frame.height * frame.width, enabled=self.backend == "cpu"):
             h, w, halo = frame.height, frame.width, self.params.halo()
             if self._buffers is None or not self._buffers.fits(h, w, halo):

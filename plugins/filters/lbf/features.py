@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
+from harness import pinhole_position
+
 from . import kernels as K
 
 GROUPS = ("color", "position", "normal", "albedo", "visibility")
@@ -78,8 +80,9 @@ def gather_inputs(frame, visibility: str = "auto") -> Inputs:
     Parameters
     ----------
     frame : harness.Frame
-        Needs ``color``, ``variance``, ``position``, ``normal``, ``albedo``; ``visibility`` and
-        ``spp`` are used when present.
+        Needs ``color``, ``normal``, ``albedo``; ``variance``, ``position``, ``visibility`` and
+        ``spp`` are used when present (without ``variance`` it is estimated from the image,
+        without ``position`` a pinhole stand-in from ``depth`` or unit depth is used).
     visibility : {"auto", "standin"}
         ``auto`` uses the ``visibility`` channel when the frame has one, else the stand-in (the
         foreground mask); ``standin`` always uses the stand-in.
@@ -96,11 +99,15 @@ def gather_inputs(frame, visibility: str = "auto") -> Inputs:
 
     has_vis = visibility == "auto" and "visibility" in frame
     has_spp = "spp" in frame
-    variance = arr("variance")
+    # degraded modes: no variance channel is a zero one (estimated spatially, below); no position
+    # a pinhole stand-in from depth, or from the pixel grid at unit depth
+    variance = arr("variance") if "variance" in frame else _readonly(np.zeros((*frame.shape, 3), np.float32))
+    position = arr("position") if "position" in frame else _readonly(
+        pinhole_position(frame.shape, frame["depth"] if "depth" in frame else None))
     return Inputs(
         color=arr("color"),
         variance=variance,
-        position=arr("position"),
+        position=position,
         normal=arr("normal"),
         albedo=arr("albedo"),
         vis=arr("visibility") if has_vis else _readonly(np.zeros((1, 1), np.float32)),

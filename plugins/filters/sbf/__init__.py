@@ -4,7 +4,9 @@ Modules: :mod:`.params` (parameters), :mod:`.features` (guide features), :mod:`.
 (where the noise variance is unknown), :mod:`.bank` (candidate filters, their divergence and
 SURE), :mod:`.pipeline` (one pass: bank, SURE smoothing, argmin), :mod:`.adaptive` (sample
 budget allocation), :mod:`.filter` (the filter object), :mod:`.cpu` / :mod:`.cuda` (kernels).
-See README.md beside this file.
+Degraded modes: without ``variance`` every pixel's variance is estimated spatially (as
+``variance_source="spatial"``), without ``depth`` the depth feature is constant. See README.md
+beside this file.
 """
 
 from harness import FilterSpec, hookimpl
@@ -30,8 +32,9 @@ def register_filters():
             name="sbf",
             version=VERSION,
             factory=SBFFilter,
-            requires={"color", "normal", "albedo", "depth", "variance"},
-            optional={"spp"},
+            requires={"color", "normal", "albedo"},
+            optional={"depth", "variance", "spp"},
+            full_guides={"normal", "albedo", "depth", "variance"},
             temporal=False,
             backends=("cpu", "cuda"),
             params=DECLARED,

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
-from harness import load_backend
+from harness import constant_depth, load_backend
 
 from .adaptive import allocate, sampling_weight, split_budget
 from .params import SBFParams
@@ -109,7 +110,13 @@ class SBFFilter:
 
 
     def _pass(self, frame):
-        return run_sbf(frame, self.params, self.kernels, self._work, keep=self.keep_candidates)
+        params = self.params
+        if "depth" not in frame:  # no depth feature: every pixel at depth 1 (the depth term is 0)
+            frame = frame.replace(depth=constant_depth(frame.shape))
+        if "variance" not in frame:  # no variance channel: estimated from the image (variance.py)
+            frame = frame.replace(variance=np.zeros((*frame.shape, 3), np.float32))
+            params = dataclasses.replace(params, variance_source="spatial")
+        return run_sbf(frame, params, self.kernels, self._work, keep=self.keep_candidates)
 
 
 def _add_stages(totals: dict, stages: dict) -> None:

@@ -1,7 +1,9 @@
 """The ``svgf`` filter: spatiotemporal variance-guided filtering (Schied et al., HPG 2017).
 
 Albedo demodulation, temporal reprojection and accumulation with motion vectors, temporal (or
-short-history spatial) luminance variance, and 5 variance-guided à-trous iterations. Backends:
+short-history spatial) luminance variance, and 5 variance-guided à-trous iterations. Degraded
+modes (README): without ``motion`` spatial only (no history), without ``depth`` no depth stop,
+without ``object_id`` one object. Backends:
 ``cpu`` (Numba, parallel) and ``cuda`` (``numba.cuda``).
 """
 
@@ -25,8 +27,9 @@ def register_filters():
             name="svgf",
             version=VERSION,
             factory=make_filter,
-            requires={"color", "albedo", "normal", "depth", "object_id", "motion"},
-            optional={"indirect", "emission"},
+            requires={"color", "albedo", "normal"},
+            optional={"depth", "object_id", "motion", "indirect", "emission"},
+            full_guides={"albedo", "normal", "depth", "object_id", "motion"},
             temporal=True,
             backends=("cpu", "cuda"),
             params=DECLARED,

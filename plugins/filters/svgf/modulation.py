@@ -5,7 +5,8 @@ when the frame carries ``indirect`` (filtered separately from the rest of the li
 
 Bad input is made harmless here, in the pass that reads it anyway (the rules are listed in the
 README): a pixel with a negative object id, a non-finite depth, or a zero or non-finite normal
-is background; non-finite radiance counts as 0; a NaN albedo as 1; motion that is not finite
+is background; non-finite radiance counts as 0; a NaN albedo as 1, a pixel whose albedo is
+below ``UNDEMODULATED_BELOW`` in every component is not demodulated; motion that is not finite
 points outside the image (no history).
 """
 
@@ -23,6 +24,30 @@ DEPTH_MAX = 1.0e30
 #: pixel whose albedo exceeds its neighbours' by a factor k gets their irradiance times k (with
 #: 1e6 here, a 5 % sprinkle of 3.4e38 albedo gave outputs 1e6 times the largest input colour)
 ALBEDO_MAX = 1.0
+#: a pixel whose largest albedo component is below this is not demodulated (its albedo counts as 1):
+#: renderers report albedo 0 on conductors (Mitsuba's albedo AOV) while their colour is not, and
+#: dividing by the floor ``albedo_epsilon`` made that colour 1000 times brighter, spread by the
+#: à-trous passes onto the surfaces around it (see the README)
+UNDEMODULATED_BELOW = 0.01
+
+
+@njit(cache=True, inline="always")
+def demodulation_albedo(a, largest, albedo_eps):
+    """The albedo component ``a`` used for demodulation: 1 where NaN or where the pixel's largest
+    component ``largest`` is below :data:`UNDEMODULATED_BELOW`, else ``a`` within
+    ``[albedo_eps, ALBEDO_MAX]``."""
+    if a != a or not largest >= UNDEMODULATED_BELOW:
+        return 1.0
+    return min(max(a, albedo_eps), ALBEDO_MAX)
+
+
+@njit(cache=True, inline="always")
+def largest_albedo(a0, a1, a2):
+    """The largest albedo component of a pixel, a NaN component counting as 1 (as it is used)."""
+    a0 = 1.0 if a0 != a0 else a0
+    a1 = 1.0 if a1 != a1 else a1
+    a2 = 1.0 if a2 != a2 else a2
+    return max(a0, max(a1, a2))
 
 
 @njit(cache=True, inline="always")
@@ -38,7 +63,9 @@ def prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in
 
     ``color`` is the authority: with two signals the first is ``color - indirect - emission``
     (the direct light when the split is consistent) and the second ``indirect``; with one, the
-    first is ``color - emission``. Each is divided by ``max(albedo, albedo_eps)``. The emitted
+    first is ``color - emission``. Each is divided by ``max(albedo, albedo_eps)``, or by 1 where the
+    pixel's largest albedo component is below :data:`UNDEMODULATED_BELOW` (no amplification of
+    the colour of conductors, whose albedo renderers report as 0). The emitted
     radiance is not filtered: :func:`remodulate_pixel` adds it back.
 
     Parameters
@@ -82,9 +109,9 @@ def prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in
     for k in range(2):
         m = motion_in[i, j, k]
         motion[k, i, j] = min(max(m, -lim), lim) if m == m else lim  # NaN: outside, no history
+    largest = largest_albedo(albedo_in[i, j, 0], albedo_in[i, j, 1], albedo_in[i, j, 2])
     for c in range(3):
-        a = albedo_in[i, j, c]
-        a = 1.0 if a != a else min(max(a, albedo_eps), ALBEDO_MAX)
+        a = demodulation_albedo(albedo_in[i, j, c], largest, albedo_eps)
         albedo[c, i, j] = a
         if ok:
             # float64 arithmetic (also under the CUDA simulator: no float32 overflow warning)

@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from harness import kernels, load_backend
+from harness import constant_depth, kernels, load_backend, one_object, zero_motion
 
 from .params import SVGFParams
 
@@ -42,6 +42,15 @@ def _scratch(ops, nsig: int, h: int, w: int) -> dict:
         "var_a": ops.empty((nsig, h, w), np.float64),
         "var_b": ops.empty((nsig, h, w), np.float64),
     }
+
+
+def _with_stand_ins(frame):
+    """``frame`` with neutral stand-ins for missing ``depth`` (1: the depth stop passes),
+    ``object_id`` (0: one object) and ``motion`` (0; the history is dropped then)."""
+    shape = frame.shape
+    missing = {"depth": constant_depth, "object_id": one_object, "motion": zero_motion}
+    added = {name: make(shape) for name, make in missing.items() if name not in frame}
+    return frame.replace(**added) if added else frame
 
 
 class SVGF:
@@ -111,8 +120,9 @@ class SVGF:
         ops = self._ops
         h, w = frame.height, frame.width
         nsig = 2 if (p.separate_lighting and "indirect" in frame) else 1
-        if frame.meta.camera_cut:
-            self.reset()
+        if frame.meta.camera_cut or "motion" not in frame:
+            self.reset()  # without motion vectors: spatial only (no history to reproject)
+        frame = _with_stand_ins(frame)
         index, prev, tmp = self._buffers(nsig, h, w)
         cur = self._sets[index]
         has_prev = prev is not None

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, uint64
 
-from .modulation import ALBEDO_MAX, DEPTH_MAX, F32_BIG
+from .modulation import DEPTH_MAX, F32_BIG, demodulation_albedo, largest_albedo
 
 
 @njit(cache=True, inline="always")
@@ -52,8 +52,8 @@ def prepare_row(i, color, indirect, nsig, emission, has_emission, albedo_in, nor
     for c in range(3):
         for t in range(w):
             j = uint64(t)
-            a = albedo_in[i, j, c]
-            a = 1.0 if a != a else min(max(a, albedo_eps), ALBEDO_MAX)
+            largest = largest_albedo(albedo_in[i, j, 0], albedo_in[i, j, 1], albedo_in[i, j, 2])
+            a = demodulation_albedo(albedo_in[i, j, c], largest, albedo_eps)
             albedo[c, i, j] = a
             e = _finite_or_zero(emission[i, j, c]) if has_emission else 0.0
             rest = _finite_or_zero(color[i, j, c]) - e

@@ -31,6 +31,7 @@ def register_renderers():
             scene_kinds=frozenset({KIND}),
             reference_spp=0,
             reference_noise=True,
+            deterministic=True,  # stored frames: every seed gives the same input
             tasks={"denoise"},
             description="frames, G-buffers and references captured by other renderers (OpenEXR AOVs + sidecar)",
         )
