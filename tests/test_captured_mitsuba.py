@@ -47,6 +47,7 @@ def capture(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_mitsuba_capture_is_ingested_with_harness_conventions(capture):
     registry = load_plugins()
     scene = registry.open_scene(capture)

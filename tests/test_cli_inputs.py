@@ -67,6 +67,7 @@ def test_bad_input_is_one_line_and_exit_2(case, tmp_path):
     assert "Traceback" not in out.stderr
 
 
+@pytest.mark.slow
 def test_out_pointing_at_a_file_or_a_read_only_folder(tmp_path):
     afile = tmp_path / "file.txt"
     afile.write_text("x")
@@ -84,6 +85,7 @@ def test_out_pointing_at_a_file_or_a_read_only_folder(tmp_path):
     assert out.returncode == 2 and "is not writable" in out.stderr and len(out.stderr.splitlines()) == 1
 
 
+@pytest.mark.slow
 def test_a_second_run_into_a_locked_folder_is_refused(tmp_path):
     with FolderLock(tmp_path / "o"):
         out = cli(["run", *QUICK, "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])

@@ -47,6 +47,7 @@ def test_a_capture_without_reference_variance_has_unknown_not_zero_noise(tmp_pat
     assert captured.reference_noise.isna().all() and captured.rmse.notna().all()
 
 
+@pytest.mark.slow
 def test_save_outputs_writes_exr_per_frame(tmp_path):
     from harness.exr import read_channels
 

@@ -36,6 +36,7 @@ def test_the_job_id_changes_with_every_input_that_changes_rows():
         assert _ids(**dict(changed)) != base, changed
 
 
+@pytest.mark.slow
 def test_resume_never_mixes_settings(tmp_path):
     out, cache = tmp_path / "o", tmp_path / "c"
     bench([*RUN, "--resolution", "64x48", "--out", out, "--cache-dir", cache])
@@ -52,6 +53,7 @@ def test_resume_never_mixes_settings(tmp_path):
     assert len(manifest["references"]) == 1 + 16  # every frame of the stored table
 
 
+@pytest.mark.slow
 def test_resume_after_a_partial_second_invocation_keeps_the_manifest_whole(tmp_path):
     out, cache = tmp_path / "o", tmp_path / "c"
     bench([*RUN, "--frames", "2", "--out", out, "--cache-dir", cache])
@@ -61,6 +63,7 @@ def test_resume_after_a_partial_second_invocation_keeps_the_manifest_whole(tmp_p
     assert manifest["jobs"] == 4 and manifest["reused_jobs"] == 4
 
 
+@pytest.mark.slow
 def test_a_corrupted_cache_entry_is_rendered_again_with_a_warning(tmp_path):
     out, cache = tmp_path / "o", tmp_path / "c"
     first = bench([*RUN, "--frames", "1", "--out", out, "--cache-dir", cache])

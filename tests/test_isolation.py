@@ -64,6 +64,7 @@ def faulty(fake_distribution):
     return fake_distribution("faulty-dist", {"faulty": "faulty_filters"}, {"faulty_filters": FAULTY})
 
 
+@pytest.mark.slow
 def test_each_crash_is_one_error_row_and_the_run_completes(tmp_path, faulty):
     args = ["run", "--scenes", "synthetic-edges,synthetic-moving", "--frames", "2", "--quiet", "--repeats", "1",
             "--seeds", "0", "--timing-at", "none",
@@ -91,6 +92,7 @@ def test_each_crash_is_one_error_row_and_the_run_completes(tmp_path, faulty):
     assert lenient.returncode == 0
 
 
+@pytest.mark.slow
 def test_inline_executor_turns_sys_exit_into_an_error_row(tmp_path, faulty):
     out = bench(["run", "--scenes", "synthetic-edges", "--filters", "exit,passthrough", "--quiet", "--executor",
                  "inline", "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"], env=bench_env(faulty))
@@ -98,6 +100,7 @@ def test_inline_executor_turns_sys_exit_into_an_error_row(tmp_path, faulty):
     assert df.set_index("filter").status.to_dict() == {"exit": "error", "passthrough": "ok"}, out.stdout
 
 
+@pytest.mark.slow
 def test_the_worker_stays_warm_and_restarts_after_a_crash(faulty):
     """One worker serves job after job; after it dies, the next task gets a new one."""
     with LocalExecutor(plugins=PluginOptions(), timeout=60) as ex:

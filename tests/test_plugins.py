@@ -72,6 +72,7 @@ def test_broken_plugins_are_listed_and_do_not_take_down_the_others(fake_distribu
     assert "passthrough" in reg.filters and "synthetic" in reg.renderers
 
 
+@pytest.mark.slow
 def test_plugins_command_lists_json_with_status(fake_distribution):
     path = fake_distribution("broken-dist", {"missing": "no_such_module_here"})
     out = subprocess.run(

@@ -63,6 +63,7 @@ def test_the_timing_group_is_the_profile_scene_or_the_first_one():
         make_plan(reg, store, scenes, ["passthrough"], ["rmse"], timing_resolutions=((640, 480),))
 
 
+@pytest.mark.slow
 def test_quick_run_has_seeds_intervals_and_real_resolution_times(tmp_path):
     out = bench(["run", "--scenes", "synthetic-moving,synthetic-edges", "--frames", "3", "--filters",
                  "passthrough,gaussian", "--quiet", "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"])

@@ -45,6 +45,7 @@ def test_stored_variance_matches_the_variance_across_reference_seeds_synthetic(r
     check_variance_halves(empirical, stored, 0.08)
 
 
+@pytest.mark.slow
 def test_stored_variance_matches_the_variance_across_reference_seeds_path_tracer(registry):
     """Cornell box (area light, indirect light, heavy tails): 12 independent 64-spp references."""
     store = store_at(registry, (24, 24))

@@ -81,6 +81,7 @@ def test_an_invalid_checkpoint_is_discarded_with_a_warning(tmp_path):
     assert np.array_equal(ref, fresh)
 
 
+@pytest.mark.slow
 def test_render_command_fills_the_cache_that_run_uses(tmp_path):
     out = bench(["render", "--scenes", "synthetic-static", "--frames", "2", "--spp", "8", "--chunk", "3",
                  "--cache-dir", tmp_path / "c"])
@@ -91,6 +92,7 @@ def test_render_command_fills_the_cache_that_run_uses(tmp_path):
     assert "2 reused from the cache, 2 rendered" in run.stdout  # references reused, noisy frames rendered
 
 
+@pytest.mark.slow
 def test_bench_command_reports_ratios_to_peers():
     out = bench(["bench", "gaussian", "--peers", "passthrough", "--resolution", "64x48,32x16", "--repeats", "2"])
     lines = out.stdout.splitlines()
@@ -98,6 +100,7 @@ def test_bench_command_reports_ratios_to_peers():
     assert "x_vs_passthrough" in out.stdout and "rmse" in out.stdout
 
 
+@pytest.mark.slow
 def test_bench_without_error_renders_no_reference(tmp_path):
     out = bench(["bench", "noaa", "--peers", "taa", "--task", "antialias", "--scene", "aa-fence", "--resolution",
                  "32x18", "--repeats", "2", "--no-error", "--cache-dir", tmp_path / "c"])

@@ -32,6 +32,7 @@ def referenced(index):
     return html, re.findall(r'(?:src|href)="([^"]+)"', html)
 
 
+@pytest.mark.slow
 def test_report_is_a_self_contained_folder_whose_images_all_exist(run_dir):
     index = run_dir / "report" / "index.html"
     html, links = referenced(index)
@@ -59,6 +60,7 @@ def test_report_is_a_self_contained_folder_whose_images_all_exist(run_dir):
     assert len(kept) == 3 * (3 + 2 * 3)  # frames x (reference, 2 inputs, 3 configurations at 2 spp)
 
 
+@pytest.mark.slow
 def test_report_command_rebuilds_with_budgets_and_metrics_and_without_frames(run_dir, tmp_path):
     out = bench(["report", run_dir, "--out", tmp_path / "r", "--budget", "5,50", "--plot-metrics",
                  "display_rmse,ssim"])

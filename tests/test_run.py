@@ -286,6 +286,7 @@ def test_cache_key_misses_when_the_scene_changes(tmp_path):
     assert store.cache.misses == {"frames": 2}
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(os.name != "posix", reason="uses POSIX signals")
 def test_pictures_are_written(tmp_path):
     bench(

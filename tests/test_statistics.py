@@ -19,6 +19,7 @@ def test_score_weights_every_scene_equally():
     assert score(cells) == pytest.approx(0.5)
 
 
+@pytest.mark.slow
 def test_interval_covers_the_true_mean_about_95_percent_of_the_time():
     """Seeds are independent replicates; frames of one seed are correlated (a shared offset per seed)."""
     rng = np.random.default_rng(0)

@@ -494,6 +494,7 @@ def faulty(fake_distribution):
     return fake_distribution("stress-faulty-dist", {"stress_faulty": "stress_faulty"}, {"stress_faulty": FAULTY})
 
 
+@pytest.mark.slow
 def test_crashes_and_hangs_are_rows_and_the_run_goes_on(tmp_path, faulty):
     out = bench(["stress", "--filters", "segv,hang,passthrough", "--cases", "guide-normal-nan,shape-1x1",
                  "--timeout", "5", "--out", tmp_path / "s", "--markdown", tmp_path / "md" / "s.md"],
@@ -524,6 +525,7 @@ def test_a_crashing_stress_check_fails_its_test_not_the_session(faulty, monkeypa
         registry.cache_clear()
 
 
+@pytest.mark.slow
 def test_fuzzing_finds_shrinks_saves_and_replays_a_third_party_failure(tmp_path, faulty, capsys):
     import importlib
 
