@@ -2,8 +2,8 @@
 
 Captured frames often hold colour, albedo and normal only (what an OIDN user has). A filter that
 can run on fewer guides declares the others ``optional`` (:class:`harness.FilterSpec`) and fills
-what is missing with these stand-ins; the row's ``guides`` column then names the guides it had. (A missing ``variance`` is the filter's own business: SBF and LBF estimate
-it from the image.)
+what is missing with these stand-ins; the row's ``guides`` column then names the guides it had.
+(A missing ``variance`` is the filter's own business: SBF and LBF estimate it from the image.)
 
 * :func:`pinhole_position`: a camera-space position from depth (or unit depth) and the pixel's
   place, for an unknown camera of a 53 degree horizontal field of view: differences between

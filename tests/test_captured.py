@@ -435,5 +435,5 @@ def test_a_deterministic_renderer_runs_one_seed_and_says_so(registry, synthetic,
     plan = make_plan(registry, store, specs, ["passthrough"], ["ssim"], spp=(2,), seeds=(0, 1, 2), frames=1)
     seeds = {(j.scene, j.seed) for j in plan.jobs}
     assert seeds == {("synthetic-edges", 0), ("synthetic-edges", 1), ("synthetic-edges", 2), ("synthetic-moving", 0)}
-    assert plan.notes == ["scene 'synthetic-moving': renderer 'captured' returns the same frames for every seed: one seed (0) "
-                          "instead of 3"]
+    assert plan.notes == ["scene 'synthetic-moving': renderer 'captured' returns the same frames for every seed: "
+                          "one seed (0) instead of 3"]

@@ -19,8 +19,8 @@ from harness import CHANNELS, CameraPath, load_plugins
 pytest.importorskip("mitsuba")
 
 from plugins.renderers.mitsuba import MitsubaRenderer  # noqa: E402
-from plugins.renderers.mitsuba.renderer import lane_batches  # noqa: E402
 from plugins.renderers.mitsuba.streams import base_key, image_seed  # noqa: E402
+from plugins.renderers.mitsuba.sums import lane_batches  # noqa: E402
 from plugins.renderers.mitsuba.variants import VariantError, probe  # noqa: E402
 from plugins.scenes.mitsuba import load  # noqa: E402
 

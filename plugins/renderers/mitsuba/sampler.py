@@ -6,6 +6,8 @@ import numpy as np
 
 from harness import Frame, Sampler
 
+from .sums import PixelSums
+
 OWNER = "renderer 'mitsuba'"
 
 
@@ -28,8 +30,6 @@ class MitsubaSampler(Sampler):
     """
 
     def __init__(self, renderer, scene, frame_index: int, *, spp: int, seed: int, channels, resolution):
-        from .renderer import PixelSums
-
         if int(spp) < 1:
             raise ValueError(f"{OWNER}: sampler needs spp >= 1, got {spp}")
         self._renderer = renderer
