@@ -156,7 +156,8 @@ class Plan:
 def choose_renderer(registry, scene_spec, task: str) -> str | None:
     """The renderer for a scene and task when the user names none: preferred, else the first that fits."""
     fits = [
-        n for n, r in sorted(registry.renderers.items()) if scene_spec.kind in r.scene_kinds and task in r.tasks
+        n for n, r in sorted(registry.renderers.items())
+        if scene_spec.kind in r.scene_kinds and scene_spec.tier in r.scene_tiers and task in r.tasks
     ]
     for name in PREFERRED_RENDERERS.get((scene_spec.kind, task), ()):
         if name in fits:
@@ -421,7 +422,8 @@ def _plan_scene_task(plan, registry, store, scene_spec, task, renderer, filter_s
         "nonfinite": nonfinite,
         **extra,
     }
-    runnable = rspec is not None and scene_spec.kind in rspec.scene_kinds and task in rspec.tasks
+    runnable = (rspec is not None and scene_spec.kind in rspec.scene_kinds and scene_spec.tier in rspec.scene_tiers
+                and task in rspec.tasks)
     if runnable:
         identity.update(
             scene_hash=store.scene_hash(scene_spec.name),
@@ -480,6 +482,9 @@ def _skip_reason(scene_spec, task, rname, rspec, fspec, backend) -> str:
         return f"no renderer serves task {task!r} for scene kind {scene_spec.kind!r}"
     if scene_spec.kind not in rspec.scene_kinds:
         return f"renderer {rname!r} renders {sorted(rspec.scene_kinds)} scenes, not {scene_spec.kind!r}"
+    if scene_spec.tier not in rspec.scene_tiers:
+        return (f"renderer {rname!r} renders scenes of the {'/'.join(sorted(rspec.scene_tiers))} tier, not scene "
+                f"{scene_spec.name!r} ({scene_spec.tier})")
     if task not in rspec.tasks:
         return f"renderer {rname!r} serves {sorted(rspec.tasks)}, not task {task!r}"
     missing = sorted(fspec.requires - rspec.provides)

@@ -265,6 +265,10 @@ class RendererSpec:
     deterministic : bool
         True if it returns the same frames for every seed (captured frames): the planner then
         runs one seed, and the leaderboard's tests resample over frames and scenes only.
+    scene_tiers : iterable of str
+        Tiers (:data:`TIERS`) of the scenes of its kinds that it renders (default: every tier;
+        ``mitsuba`` renders the ``real`` tier's Mitsuba XML scenes only). Elsewhere the planner
+        skips it with the reason.
     """
 
     name: str
@@ -280,10 +284,15 @@ class RendererSpec:
     tasks: frozenset = frozenset({"denoise"})
     reference_noise: bool = False
     deterministic: bool = False
+    scene_tiers: frozenset = frozenset(TIERS)
 
     def __post_init__(self):
         object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
         object.__setattr__(self, "scene_kinds", frozenset(self.scene_kinds))
+        object.__setattr__(self, "scene_tiers", frozenset(self.scene_tiers))
+        if not self.scene_tiers <= frozenset(TIERS):
+            raise ValueError(f"renderer {self.name!r}: scene_tiers must be among {TIERS}, "
+                             f"got {sorted(self.scene_tiers)}")
         object.__setattr__(self, "tasks", _check_tasks(f"renderer {self.name!r}", self.tasks))
 
     def declarations(self) -> dict:
@@ -296,6 +305,7 @@ class RendererSpec:
             "chunked": self.chunked,
             "reference_noise": self.reference_noise,
             "deterministic": self.deterministic,
+            "scene_tiers": sorted(self.scene_tiers),
             "tasks": sorted(self.tasks),
         }
 

@@ -214,7 +214,8 @@ METRIC_CHECKS = [check_metric_identical_best, check_metric_symmetric_inputs_unto
 
 # ---------------------------------------------------------------- renderers
 def _scene_for(registry, spec):
-    candidates = [s for _, s in sorted(registry.scenes.items()) if s.kind in spec.scene_kinds]
+    candidates = [s for _, s in sorted(registry.scenes.items())
+                  if s.kind in spec.scene_kinds and s.tier in spec.scene_tiers]
     if not candidates:
         return None
     return min(candidates, key=lambda s: s.resolution[0] * s.resolution[1] * s.frames).factory()

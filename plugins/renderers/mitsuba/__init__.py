@@ -31,6 +31,7 @@ def register_renderers():
             references=True,
             adaptive=True,
             scene_kinds=frozenset({"mesh"}),
+            scene_tiers=frozenset({"real"}),  # the Mitsuba XML scenes, not the built-in meshes
             reference_spp=REFERENCE_SPP,
             chunked=True,
             tasks={"denoise"},
