@@ -20,20 +20,16 @@ and a half of the run. ``evaluate`` scores every weights file of the folder not 
 
 Results go to ``DIR/scores.json`` (several ``evaluate`` processes, each with its own ``--only``,
 can share it). ``report`` prints the Markdown tables (mean and range over seeds) and draws the
-plot. Everything runs with one PyTorch and one Numba thread.
+plot. Everything runs with one PyTorch thread; run it with ``NUMBA_NUM_THREADS=1`` to run several at once.
 """
 
 from __future__ import annotations
 
 import json
-import os
 import re
 from pathlib import Path
 
 import numpy as np
-
-os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-
 from antialias import GBUFFER, moving_trails, render_scene, trail_masks  # noqa: E402
 from common import integer, parser, run, timed_call  # noqa: E402
 

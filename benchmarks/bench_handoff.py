@@ -32,7 +32,7 @@ from harness.jobs import GroupInputs
 from harness.machine import cpu_model
 from harness.plan import Job, MetricPlan
 from harness.renders import RenderStore
-from harness.tasks import JobTask
+from harness.units import JobUnit
 
 
 def group_inputs(reg, resolution, frames, channels) -> GroupInputs:
@@ -49,7 +49,7 @@ def group_inputs(reg, resolution, frames, channels) -> GroupInputs:
 def tasks_for(name, resolution, frames, repeats, inputs, count, key):
     job = Job("denoise", "synthetic-moving", "synthetic", name, "cpu", "{}", "", 1, 0, width=resolution[0],
               height=resolution[1], frames=frames, repeats=repeats)
-    return [JobTask(job, MetricPlan(), Shared(key, inputs)) for _ in range(count)]
+    return [JobUnit(job, MetricPlan(), Shared(key, inputs)) for _ in range(count)]
 
 
 def timed_run(executor, tasks):

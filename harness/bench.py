@@ -34,7 +34,7 @@ import pandas as pd
 
 from harness.cache import array_hash, make_key
 from harness.errors import filter_error, short_error
-from harness.executors.base import Executor, Shared, Task, WorkerContext
+from harness.executors.base import Executor, Shared, WorkerContext, WorkUnit
 from harness.floor import floor_of
 from harness.jobs import GroupInputs, emitter_mask
 from harness.memory import peak_memory
@@ -84,7 +84,7 @@ class BenchResult:
 
 @dataclass
 class BenchMeasure:
-    """What a :class:`BenchTask` sends back.
+    """What a :class:`BenchUnit` sends back.
 
     Attributes
     ----------
@@ -113,7 +113,7 @@ class BenchMeasure:
 
 
 @dataclass
-class BenchTask(Task):
+class BenchUnit(WorkUnit):
     """One filter at one resolution and thread count: its time, its floor's, its peak memory.
 
     The filter runs the timing protocol (:func:`harness.timer.time_frame`) on each frame of the
@@ -198,7 +198,7 @@ def time_floor(spec, frames: Sequence, repeats: int) -> dict:
     """The timing protocol applied to the floor of ``spec`` on ``frames`` (its last frame's timing).
 
     ``frames`` are what the filter sees (its declared channels); the last frame is timed with
-    ``repeats`` calls, the ones before it with one, as :class:`BenchTask` does for the filter,
+    ``repeats`` calls, the ones before it with one, as :class:`BenchUnit` does for the filter,
     each frame after a warm-up call (on a copy: the state goes on from the timed calls): a temporal floor also
     reads its history from the second frame on, a new input layout and so a new kernel to
     compile, which a timed call must not include.
@@ -342,7 +342,7 @@ def bench_filters(
                 fparams, preset = configured[spec.name]
                 job = Job(task, scene, rname, spec.name, backend, json.dumps(fparams, sort_keys=True, default=str),
                           preset, 1, 0, width=width, height=height, frames=frames, repeats=repeats)
-                tasks.append(BenchTask(job, shared, count, score=metric is not None))
+                tasks.append(BenchUnit(job, shared, count, score=metric is not None))
         for index, outcome in executor.run(tasks):
             bench_task = tasks[index]
             row, stage = _table_row(bench_task, outcome, width * height, metric)
@@ -376,7 +376,7 @@ def sequence_frames(registry, scene: str, specs: Sequence, steady: int) -> int:
     return steady + 1
 
 
-def _table_row(bench_task: BenchTask, outcome, pixels: int, metric: str | None) -> tuple[dict, dict | None]:
+def _table_row(bench_task: BenchUnit, outcome, pixels: int, metric: str | None) -> tuple[dict, dict | None]:
     """The table row of one task's outcome and its per-stage row (None without stage timing)."""
     job = bench_task.job
     res = f"{job.width}x{job.height}"

@@ -47,7 +47,7 @@ from harness.bench_baseline import baseline_spec, module_name, plugin_path, reso
 from harness.buffers import check_filter_output
 from harness.cache import make_key
 from harness.errors import filter_error, short_error
-from harness.executors.base import Executor, Shared, Task, WorkerContext
+from harness.executors.base import Executor, Shared, WorkerContext, WorkUnit
 from harness.floor import floor_of
 from harness.jobs import GroupInputs
 from harness.plan import Job, choose_renderer, filter_params
@@ -114,7 +114,7 @@ class RoundsMeasure:
 
 
 @dataclass
-class RoundsTask(Task):
+class RoundsTask(WorkUnit):
     """Every entry of one resolution, timed round by round in one worker (see the module docstring).
 
     Attributes

@@ -2,8 +2,8 @@
 
 With an executor that runs tasks of several callers at once (``executor.concurrent``: the
 ``dask`` executor), a run asks for every frame and reference it needs without waiting: each
-missing frame becomes a :class:`harness.tasks.FrameTask` and each missing reference a series of
-:class:`harness.tasks.ChunkTask` (one per range of samples) on the workers. The client (this
+missing frame becomes a :class:`harness.units.FrameUnit` and each missing reference a series of
+:class:`harness.units.ChunkUnit` (one per range of samples) on the workers. The client (this
 process) owns the cache: it validates what comes back and stores it, and it adds the float64
 sums of a reference's chunks in sample order (:meth:`RenderStore.reference` with
 ``map_chunks``), so the reference is the one a local render gives, bit for bit, and an
@@ -20,7 +20,7 @@ from harness.buffers import Frame
 from harness.executors.base import Executor, Shared
 from harness.references import reference_record
 from harness.renders import DEFAULT_CHUNK, REFERENCE_SEED, RenderStore
-from harness.tasks import ChunkTask, FrameTask
+from harness.units import ChunkUnit, FrameUnit
 
 #: client threads waiting on renders at once (each waits on tasks; none computes)
 WAITING_THREADS = 64
@@ -136,7 +136,7 @@ class RemoteRenders:
         settings = self.store.factory_settings(renderer)
 
         def render(scene, frame_index, *, spp, seed, channels, resolution) -> Frame:
-            task = FrameTask(scene.name, renderer, settings, frame_index, spp, seed, sorted(channels),
+            task = FrameUnit(scene.name, renderer, settings, frame_index, spp, seed, sorted(channels),
                              tuple(resolution), Shared(scene.content_hash(), scene))
             return Frame.from_arrays(self._run_one(task), owner=f"renderer {renderer!r} (on a worker)")
 
@@ -147,7 +147,7 @@ class RemoteRenders:
         resolution = tuple(self.store.resolution(scene))
 
         def map_chunks(ranges):
-            tasks = [ChunkTask(scene.name, renderer, settings, frame_index, first, count, REFERENCE_SEED, resolution,
+            tasks = [ChunkUnit(scene.name, renderer, settings, frame_index, first, count, REFERENCE_SEED, resolution,
                                Shared(scene.content_hash(), scene)) for first, count in ranges]
             return self._in_order(tasks)
 

@@ -46,7 +46,7 @@ from harness.renders import RenderStore
 from harness.report import outputs as kept
 from harness.results import write_table
 from harness.rows import combine, make_table
-from harness.tasks import JobTask
+from harness.units import JobUnit
 
 
 @dataclass
@@ -244,7 +244,7 @@ class _Run:
         keep = "all" if self.save_outputs else ("first" if self.pictures else "none")
         if report and not self.save_outputs:
             keep = report | {0} if self.pictures else report
-        tasks = [JobTask(job, group.metrics, Shared(key, inputs), keep) for job in pending]
+        tasks = [JobUnit(job, group.metrics, Shared(key, inputs), keep) for job in pending]
         for index, outcome in self.executor.run(tasks, progress=bar.update):
             if self._stopped.is_set():
                 return

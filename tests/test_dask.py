@@ -127,7 +127,7 @@ def test_a_worker_killed_while_it_renders_a_chunk_loses_and_repeats_no_samples(r
     added, result = [], {}
     with RemoteRenders(store, cluster, chunk=2) as renders:
         future = renders.reference("synthetic-moving", "slow-synthetic", 1, spp=16, progress=added.append)
-        killed = kill_a_worker_running(cluster.client, "ChunkTask", lambda: not future.done())
+        killed = kill_a_worker_running(cluster.client, "ChunkUnit", lambda: not future.done())
         result["ref"] = future.result(timeout=120)
     assert killed, "no chunk was seen running on a worker"
     local = RenderStore(registry, resolution=(24, 16)).reference("synthetic-moving", "synthetic", 1, spp=16, chunk=16)
@@ -178,7 +178,7 @@ def test_a_worker_killed_while_it_holds_tasks_is_replaced_and_the_run_completes(
 
     thread = threading.Thread(target=background)
     thread.start()
-    killed = kill_a_worker_running(client, "JobTask", thread.is_alive)
+    killed = kill_a_worker_running(client, "JobUnit", thread.is_alive)
     thread.join(300)
     assert killed, "no job was seen running on a worker"
     assert not thread.is_alive() and "table" in result

@@ -19,7 +19,7 @@ import pytest
 from harness import FilterSpec, hookimpl, load_plugins
 from harness.cache import Cache
 from harness.executors import LocalExecutor, make_executor
-from harness.executors.base import PluginOptions, Task
+from harness.executors.base import PluginOptions, WorkUnit
 from harness.plan import check_choices, make_plan
 from harness.renders import RenderStore
 from harness.report import write_report
@@ -99,7 +99,7 @@ def test_run_never_starts_in_a_folder_of_other_files(registry, stored_run, tmp_p
 
 
 # ------------------------------------------------------------------ 2 and 7. the worker
-class WhereAmI(Task):
+class WhereAmI(WorkUnit):
     """Returns the harness folder the worker imported; optionally starts a child process that sleeps."""
 
     label = "where am I"

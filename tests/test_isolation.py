@@ -7,12 +7,12 @@ import pytest
 
 from harness import load_plugins
 from harness.executors import LocalExecutor
-from harness.executors.base import Outcome, PluginOptions, Task
+from harness.executors.base import Outcome, PluginOptions, WorkUnit
 from tests.conftest import bench_env
 from tests.test_run import bench
 
 
-class Probe(Task):
+class Probe(WorkUnit):
     """A task that returns its worker's pid, or makes the worker exit."""
 
     label = "probe"

@@ -1,17 +1,17 @@
-"""Where tasks run: in this process, in a persistent worker process, or on a Dask cluster.
+"""Where work units run: in this process, in a persistent worker process, or on a Dask cluster.
 
-A task (:class:`harness.executors.base.Task`) is a small picklable object with a ``run(context,
-shared)`` method; large inputs common to several tasks travel once as a :class:`Shared` value.
-An executor takes a batch of tasks and yields each :class:`Outcome` as it completes:
+A work unit (:class:`harness.executors.base.WorkUnit`) is a small picklable object with a ``run(context,
+shared)`` method; large inputs common to several work units travel once as a :class:`Shared` value.
+An executor takes a batch of work units and yields each :class:`Outcome` as it completes:
 
 ``inline``
-    runs tasks in this process (debugging; a crash or a hang of a plugin is the run's).
+    runs work units in this process (debugging; a crash or a hang of a plugin is the run's).
 ``local`` (the default)
-    runs tasks one at a time in a persistent worker subprocess, so compiled code stays warm
+    runs work units one at a time in a persistent worker subprocess, so compiled code stays warm
     between jobs; a hang past the timeout, a segfault, ``os._exit`` or the kernel's OOM kill
     become an error outcome naming what happened, and the worker is restarted.
 ``dask`` (where ``distributed`` is installed: ``pip install -e ".[dask]"``)
-    runs tasks on a ``dask.distributed`` cluster (a local cluster of worker processes, or a
+    runs work units on a ``dask.distributed`` cluster (a local cluster of worker processes, or a
     scheduler's address); see :mod:`harness.executors.dask` and docs/cluster.md.
 
 :func:`make_executor` builds one by name.
@@ -19,7 +19,7 @@ An executor takes a batch of tasks and yields each :class:`Outcome` as it comple
 
 import importlib.util
 
-from harness.executors.base import Executor, Outcome, Shared, Task, WorkerContext
+from harness.executors.base import Executor, Outcome, Shared, WorkerContext, WorkUnit
 from harness.executors.inline import InlineExecutor
 from harness.executors.local import LocalExecutor
 
@@ -66,7 +66,7 @@ __all__ = [
     "LocalExecutor",
     "Outcome",
     "Shared",
-    "Task",
+    "WorkUnit",
     "WorkerContext",
     "make_executor",
 ]

@@ -1,4 +1,4 @@
-"""The executor interface: tasks, shared inputs, outcomes, and the context a task runs in."""
+"""The executor interface: work units, shared inputs, outcomes, and the context a work unit runs in."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ from typing import Any
 
 @dataclass
 class Shared:
-    """A large input used by several tasks, sent to a worker once per ``key``.
+    """A large input used by several work units, sent to a worker once per ``key``.
 
-    An executor strips ``value`` from the tasks it ships and sends it only to workers that do
+    An executor strips ``value`` from the work units it ships and sends it only to workers that do
     not hold ``key`` yet.
     """
 
@@ -21,17 +21,17 @@ class Shared:
     value: Any = None
 
 
-class Task(ABC):
+class WorkUnit(ABC):
     """A unit of work an executor runs: picklable, with its large inputs in :attr:`shared`.
 
     Attributes
     ----------
     shared : Shared or None
-        The input several tasks share (None when there is none).
+        The input several work units share (None when there is none).
     label : str
-        What the task is, for progress and error messages.
+        What the work unit is, for progress and error messages.
     timed : bool
-        The task measures time: an executor that shares a machine between tasks runs it alone.
+        The work unit measures time: an executor that shares a machine between work units runs it alone.
     """
 
     shared: Shared | None = None
@@ -42,7 +42,7 @@ class Task(ABC):
     def run(self, context: WorkerContext, shared: Any) -> Any:
         """Do the work; ``shared`` is ``self.shared.value`` as held by the worker."""
 
-    def without_shared(self) -> Task:
+    def without_shared(self) -> WorkUnit:
         """A copy without the shared value (what travels when the worker holds it)."""
         import copy
 
@@ -54,17 +54,17 @@ class Task(ABC):
 
 @dataclass
 class Outcome:
-    """How a task ended.
+    """How a work unit ended.
 
     Attributes
     ----------
     ok : bool
-        The task returned (its value is in :attr:`value`).
+        The work unit returned (its value is in :attr:`value`).
     value : any
     error : str
         One line: what happened when not ``ok`` (an exception, a crash, a timeout).
     progress : int
-        Progress units the task reported before it ended.
+        Progress units the work unit reported before it ended.
     """
 
     ok: bool
@@ -98,13 +98,13 @@ class PluginOptions:
 
 
 class WorkerContext:
-    """What a task can use where it runs: the registry, renderer instances, a progress channel.
+    """What a work unit can use where it runs: the registry, renderer instances, a progress channel.
 
     Parameters
     ----------
     registry : harness.Registry
     progress : callable, optional
-        Receives progress units (e.g. frames done) as the task reports them.
+        Receives progress units (e.g. frames done) as the work unit reports them.
     """
 
     def __init__(self, registry, progress: Callable[[int], None] | None = None):
@@ -122,7 +122,7 @@ class WorkerContext:
 
 
 class Executor(ABC):
-    """Runs tasks and reports each one's :class:`Outcome` as it completes.
+    """Runs work units and reports each one's :class:`Outcome` as it completes.
 
     Use as a context manager (or call :meth:`close`) so workers are shut down.
     """
@@ -137,20 +137,20 @@ class Executor(ABC):
 
     @abstractmethod
     def run(
-        self, tasks: Sequence[Task], progress: Callable[[int], None] | None = None
+        self, tasks: Sequence[WorkUnit], progress: Callable[[int], None] | None = None
     ) -> Iterator[tuple[int, Outcome]]:
-        """Run ``tasks``; yield ``(index in tasks, outcome)`` as each completes.
+        """Run ``work units``; yield ``(index in work units, outcome)`` as each completes.
 
         Parameters
         ----------
-        tasks : sequence of Task
+        work units : sequence of WorkUnit
         progress : callable, optional
-            Called with progress units as tasks report them (for a progress bar).
+            Called with progress units as work units report them (for a progress bar).
         """
 
     def close(self) -> None:  # noqa: B027 (optional: an executor without workers has nothing to release)
         """Release workers (idempotent)."""
 
     def describe(self) -> dict:
-        """What the manifest records about where tasks ran."""
+        """What the manifest records about where work units ran."""
         return {"executor": self.name}

@@ -5,7 +5,7 @@ this machine, one task at a time each; with one (``--scheduler`` or ``$DASK_SCHE
 it joins that cluster (``dask scheduler`` + ``dask worker``, ``dask-jobqueue`` on SLURM or PBS).
 docs/cluster.md is the user's guide; here is how it works:
 
-* **Tasks.** Each :class:`harness.executors.base.Task` is one Dask task that calls
+* **Tasks.** Each :class:`harness.executors.base.WorkUnit` is one Dask task that calls
   :func:`execute` on a worker. A worker process loads the plugins once (the parent's
   :class:`PluginOptions`), keeps renderer instances between tasks, and returns the task's value
   (rows, frame arrays, a float64 sum of samples) to the client; nothing is read from or written
@@ -46,7 +46,7 @@ import dask
 import distributed
 
 from harness.errors import short_error
-from harness.executors.base import Executor, Outcome, PluginOptions, Shared, Task, WorkerContext
+from harness.executors.base import Executor, Outcome, PluginOptions, Shared, WorkerContext, WorkUnit
 
 #: how many workers may die running one task before it is given up (scheduler of a local cluster)
 ALLOWED_FAILURES = 3
@@ -135,7 +135,7 @@ def _set_threads(threads: int | None) -> None:
     numba.set_num_threads(most if threads is None else max(1, min(int(threads), most)))
 
 
-def execute(task: Task, shared, options: WorkerOptions) -> tuple[bool, object, int]:
+def execute(task: WorkUnit, shared, options: WorkerOptions) -> tuple[bool, object, int]:
     """Run one task on a worker (what each Dask task calls).
 
     Returns
@@ -280,7 +280,7 @@ class DaskExecutor(Executor):
                     del self._held[key]
 
     def run(
-        self, tasks: Sequence[Task], progress: Callable[[int], None] | None = None
+        self, tasks: Sequence[WorkUnit], progress: Callable[[int], None] | None = None
     ) -> Iterator[tuple[int, Outcome]]:
         resources = {TIMING_RESOURCE: 1} if any(t.timed for t in tasks) and self._timing_resource() else None
         submitted: dict = {}  # future key -> (index, task, future)
@@ -309,7 +309,7 @@ class DaskExecutor(Executor):
             for key in shared_keys:
                 self._unshare(key)
 
-    def _outcome(self, future, task: Task) -> Outcome:
+    def _outcome(self, future, task: WorkUnit) -> Outcome:
         try:
             ok, value, done = future.result()
         except distributed.KilledWorker as exc:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator, Sequence
 
 from harness.errors import short_error
-from harness.executors.base import Executor, Outcome, Task, WorkerContext
+from harness.executors.base import Executor, Outcome, WorkerContext, WorkUnit
 
 
 class InlineExecutor(Executor):
@@ -29,7 +29,7 @@ class InlineExecutor(Executor):
         self._context = WorkerContext(registry)
 
     def run(
-        self, tasks: Sequence[Task], progress: Callable[[int], None] | None = None
+        self, tasks: Sequence[WorkUnit], progress: Callable[[int], None] | None = None
     ) -> Iterator[tuple[int, Outcome]]:
         context = self._context
         for index, task in enumerate(tasks):

@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterator, Sequence
 from multiprocessing.connection import Connection
 from pathlib import Path
 
-from harness.executors.base import Executor, Outcome, PluginOptions, Task
+from harness.executors.base import Executor, Outcome, PluginOptions, WorkUnit
 
 #: seconds a new worker may take to load the plugins
 START_TIMEOUT_S = 300.0
@@ -180,12 +180,12 @@ class LocalExecutor(Executor):
 
     # ------------------------------------------------------------------ tasks
     def run(
-        self, tasks: Sequence[Task], progress: Callable[[int], None] | None = None
+        self, tasks: Sequence[WorkUnit], progress: Callable[[int], None] | None = None
     ) -> Iterator[tuple[int, Outcome]]:
         for index, task in enumerate(tasks):
             yield index, self._run_one(task, progress)
 
-    def _run_one(self, task: Task, progress) -> Outcome:
+    def _run_one(self, task: WorkUnit, progress) -> Outcome:
         done = 0
         try:
             if self._proc is None:

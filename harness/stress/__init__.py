@@ -6,7 +6,7 @@ cut sequences, frames repaired by the non-finite policy), checking the propertie
 :mod:`harness.stress.properties` on every call; ``--fuzz N`` searches generated frames with
 Hypothesis and shrinks a failure to a minimal reproducer (:mod:`harness.stress.fuzz`,
 :mod:`harness.stress.reproducer`); ``--replay FILE`` runs a reproducer again. Cases run as
-executor tasks (:mod:`harness.stress.tasks`), so a crash is a row; :mod:`harness.stress.run`
+executor tasks (:mod:`harness.stress.units`), so a crash is a row; :mod:`harness.stress.run`
 stores the table (:mod:`harness.stress.table`) and a manifest. The same cases are pytest
 checks through :func:`harness.testing.parametrize_with_checks`.
 """

@@ -1,6 +1,6 @@
 """Run one filter over one stress sequence, checking every call's output (the first one too).
 
-This runs where it is called: in a worker process through :mod:`harness.stress.tasks` (the
+This runs where it is called: in a worker process through :mod:`harness.stress.units` (the
 CLI), or in the test process (the pytest battery of :mod:`harness.testing`).
 """
 

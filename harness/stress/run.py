@@ -1,6 +1,6 @@
 """A stress run: every (filter, backend) through the battery, fuzzing and replays, stored like a run.
 
-Each case is a :class:`harness.stress.tasks.StressTask` handed to an executor, so with the
+Each case is a :class:`harness.stress.units.StressUnit` handed to an executor, so with the
 ``local`` executor it runs in the worker process: a segfault, ``os._exit`` or a hang is one
 ``crash``/``timeout`` row and the run goes on. The output folder is locked for the run and holds
 
@@ -34,7 +34,7 @@ from harness.stress.check import CaseResult
 from harness.stress.fuzz import fuzz
 from harness.stress.reproducer import load_reproducer, replay_command, save_reproducer
 from harness.stress.table import StressRow, counts, make_table, verdict
-from harness.stress.tasks import StressTask, case_result
+from harness.stress.units import StressUnit, case_result
 
 RESULTS = "results.parquet"
 REPRODUCERS = "reproducers"
@@ -208,7 +208,7 @@ class _Stress:
                 self._add(target, case.name, case.group, CaseResult(status="skipped", message=placeholder),
                           write=False)
                 if not why:
-                    tasks.append(StressTask(target.name, target.backend, target.params, case.name))
+                    tasks.append(StressUnit(target.name, target.backend, target.params, case.name))
                     slots.append((slot, target, case))
         if not tasks:
             return
@@ -228,7 +228,7 @@ class _Stress:
 
     # ------------------------------------------------------------------ fuzzing and replays
     def _evaluate(self, target: Target, label: str, frames: list, resets=(), flags=None) -> CaseResult:
-        task = StressTask(target.name, target.backend, target.params, label, frames=frames, resets=tuple(resets),
+        task = StressUnit(target.name, target.backend, target.params, label, frames=frames, resets=tuple(resets),
                           flags=dict(flags or {}))
         (_, outcome), = list(self.executor.run([task]))
         return case_result(outcome, task.label)

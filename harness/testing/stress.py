@@ -48,11 +48,11 @@ class StressCheck:
 
     def __call__(self, spec, backend) -> None:
         from harness.stress.check import run_case
-        from harness.stress.tasks import StressTask, case_result
+        from harness.stress.units import StressUnit, case_result
 
         params = dict(spec.params)
         if self.isolate:
-            task = StressTask(spec.name, backend, params, self.case.name)
+            task = StressUnit(spec.name, backend, params, self.case.name)
             (_, outcome), = list(_worker().run([task]))
             result = case_result(outcome, task.label)
         else:

@@ -1,6 +1,6 @@
-"""A stress case as an executor task: it runs in the worker, so a crash or a hang is one row.
+"""A stress case as an executor work unit: it runs in the worker, so a crash or a hang is one row.
 
-The filter's first call on a small ordinary frame (its compilation) is the task's ``prepare``
+The filter's first call on a small ordinary frame (its compilation) is the work unit's ``prepare``
 step, which the ``local`` executor runs before the case under its own, longer limit: a cold
 compile cache on a loaded machine never counts against the case's ``--timeout``. Python warnings
 a case raises (NumPy overflow on extreme input, say) go into the row's ``notes`` instead of the
@@ -12,7 +12,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, field
 
-from harness.executors.base import Outcome, Task, WorkerContext
+from harness.executors.base import Outcome, WorkerContext, WorkUnit
 from harness.stress.cases import CASES, Sequence
 from harness.stress.check import CaseResult, run_case, run_sequence
 from harness.stress.frames import scene_frame
@@ -22,7 +22,7 @@ _WARM: set = set()
 
 
 @dataclass
-class StressTask(Task):
+class StressUnit(WorkUnit):
     """Run one filter over one case of the battery, or over frames it carries (fuzzing, replay).
 
     Attributes

@@ -1,20 +1,20 @@
-"""The tasks the harness hands to executors: jobs, and the frames and reference chunks they need.
+"""The work units the harness hands to executors: jobs, and the frames and reference chunks they need.
 
-A task with ``timed = True`` measures time (a job's timing protocol): an executor that shares a
-machine between tasks runs it with nothing else beside it (see :mod:`harness.executors.dask`).
+A work unit with ``timed = True`` measures time (a job's timing protocol): an executor that shares a
+machine between work units runs it with nothing else beside it (see :mod:`harness.executors.dask`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from harness.executors.base import Shared, Task, WorkerContext
+from harness.executors.base import Shared, WorkerContext, WorkUnit
 from harness.jobs import GroupInputs, JobResult, run_job
 from harness.plan import Job, MetricPlan
 
 
 @dataclass
-class JobTask(Task):
+class JobUnit(WorkUnit):
     """Run one job (filter, timing protocol, metrics) on its group's inputs.
 
     Attributes
@@ -51,8 +51,8 @@ class JobTask(Task):
 
 
 @dataclass
-class FrameTask(Task):
-    """Render one noisy frame where the task runs and return its arrays (:meth:`Frame.to_arrays`).
+class FrameUnit(WorkUnit):
+    """Render one noisy frame where the work unit runs and return its arrays (:meth:`Frame.to_arrays`).
 
     The scene travels as the shared input (once per worker per scene); the client validates the
     frame and stores it in its cache.
@@ -95,7 +95,7 @@ class FrameTask(Task):
 
 
 @dataclass
-class ChunkTask(Task):
+class ChunkUnit(WorkUnit):
     """The float64 sum of one range of a reference's samples (a renderer's ``accumulate``).
 
     The client adds the sums of a reference's chunks in sample order, so the reference is the
