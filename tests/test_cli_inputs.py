@@ -54,7 +54,13 @@ BAD = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD))
+#: cases that load every plugin or open a scene before refusing (about 5 s each): the full tier
+SLOW_CASES = {"train untrainable", "unknown param", "negative param", "unknown preset", "param type",
+              "show nothing", "scene dir missing", "param choice"}
+
+
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_CASES else c
+                                  for c in sorted(BAD)])
 def test_bad_input_is_one_line_and_exit_2(case, tmp_path):
     args, expected = BAD[case]
     if args[0] == "run":

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import pyvista as pv
 from numba import njit
 
@@ -108,6 +109,7 @@ def _function_body(llvm_ir: str, name: str) -> str:
     return "\n".join(lines[:lines.index("}") + 1])
 
 
+@pytest.mark.slow
 def test_traversal_has_no_reference_counting():
     """No atomic reference-count updates per ray or per node (see the docstring of ``traverse``).
 

@@ -82,6 +82,7 @@ def test_quick_run_has_seeds_intervals_and_real_resolution_times(tmp_path):
     assert set(df.reference_spp) == {0} and (df.reference_noise == 0).all()  # analytic references
 
 
+@pytest.mark.slow
 def test_paper_profile_with_overrides_renders_references_to_a_target(tmp_path):
     bench(["run", "--profile", "paper", "--scenes", "synthetic-moving", "--filters", "passthrough", "--resolution",
            "24x16", "--frames", "2", "--seeds", "0,1", "--reference-spp", "64", "--timing-at", "none", "--quiet",

@@ -51,6 +51,7 @@ def run_api(reg, tmp_path, scenes, filters, metrics, executor="inline", **option
                          timing_at=options.pop("timing_at", ()), **options).table
 
 
+@pytest.mark.slow
 def test_run_writes_results_and_manifest_and_reuses_the_cache(tmp_path):
     cache = tmp_path / "cache"
     first = bench(["run", *BASE, "--out", tmp_path / "a", "--cache-dir", cache, "--csv"])

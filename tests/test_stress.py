@@ -245,6 +245,7 @@ def test_reset_must_give_a_fresh_instance():
     assert result.status == "reset_differs" and result.frame == 2  # the first reset
 
 
+@pytest.mark.slow
 def test_energy_of_a_long_static_sequence_is_bounded_and_does_not_drift():
     assert STATIC_FRAMES == 1000
     steady = run(spec_of(Average, temporal=True), "sequence-static-1000")
@@ -512,6 +513,7 @@ def test_crashes_and_hangs_are_rows_and_the_run_goes_on(tmp_path, faulty):
     assert "CRASH" in out.stdout and "timeout" in out.stdout
 
 
+@pytest.mark.slow
 def test_a_crashing_stress_check_fails_its_test_not_the_session(faulty, monkeypatch):
     import harness.testing.stress
     from harness.testing import registry

@@ -1,7 +1,7 @@
 """Mitsuba's sun and sky: the harness's Hosek-Wilkie model against Mitsuba 3's own ``sunsky`` emitter.
 
 The harness evaluates the model from the coefficients in the installed Mitsuba 3 package
-(``plugins/scenes/mitsuba/sunsky.py``); Mitsuba 3 (``scalar_rgb``) evaluates its ``sunsky``
+(``plugins/scenes/mitsuba/hosek_wilkie.py``); Mitsuba 3 (``scalar_rgb``) evaluates its ``sunsky``
 emitter (``Emitter.eval``) towards the same directions. Sky radiance must agree within
 ``SKY_RTOL`` relative (Mitsuba computes in float32: the exponentials and the 1.5 power of the
 circumsolar term lose a few 1e-6 relative; the bound leaves a factor of ten), solar radiance
@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from plugins.scenes.mitsuba import MitsubaWarning, load
-from plugins.scenes.mitsuba import sunsky as hw
+from plugins.scenes.mitsuba import hosek_wilkie as hw
 from plugins.scenes.mitsuba.sun_sky import SKY_MAP_HEIGHT
 
 SKY_RTOL = 1e-4

@@ -20,7 +20,7 @@ zenith                        Mitsuba 0.6: +y (``toWorld`` applies after); Mitsu
                               ``to_world`` times +z
 ============================  ==========================================================
 
-With the model's coefficients (:func:`.sunsky.load_tables`, from the installed Mitsuba 3), the
+With the model's coefficients (:func:`.hosek_wilkie.load_tables`, from the installed Mitsuba 3), the
 sky is baked into an environment map and the sun is a disc of Mitsuba 3's solar radiance (the
 mean over the disc with ``complex_sun``, whose limb darkening a uniform disc cannot hold); without
 them, a gradient sky and a white disc, warned with the reason. Either way the warning names the
@@ -39,7 +39,7 @@ import numpy as np
 
 from harness import Environment, Sun
 
-from .sunsky import SUN_APERTURE, Y_UP, SunskyParams, bake_sky, load_tables, sun_disc_radiance
+from .hosek_wilkie import SUN_APERTURE, Y_UP, SunskyParams, bake_sky, load_tables, sun_disc_radiance
 from .xmlscene import find, get_bool, get_color, get_float, transform, vector, warn
 
 KINDS = ("sun", "sky", "sunsky")
@@ -101,7 +101,7 @@ def sun_and_sky(node: ET.Element, file_version: tuple) -> tuple[Environment | No
     sun : harness.Sun or None
         A disc of half the aperture; None without a sun.
     record : dict
-        ``model`` ("hosek-wilkie" or "gradient") and the :class:`.sunsky.SunskyParams` fields
+        ``model`` ("hosek-wilkie" or "gradient") and the :class:`.hosek_wilkie.SunskyParams` fields
         (JSON-ready lists), for ``Scene.params["sunsky"]``.
     """
     kind = node.get("type")

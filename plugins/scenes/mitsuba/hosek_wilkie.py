@@ -1,4 +1,4 @@
-"""Mitsuba 3's ``sunsky`` emitter: the Hosek-Wilkie sky and sun, evaluated from their published coefficients.
+"""Hosek-Wilkie sun and sky (Mitsuba 3's ``sunsky`` emitter), evaluated from their published coefficients.
 
 The coefficients (Hosek and Wilkie 2012, 2013; BSD licence) are not part of this project: they are
 read at run time from the installed Mitsuba 3 package (``mitsuba/data/sunsky/sunsky_datasets.bin``,
