@@ -19,6 +19,7 @@ from harness.exr import ExrError, read_channels, read_size, write_capture, write
 from harness.guides import constant_depth, one_object, pinhole_position, zero_motion
 from harness.hookspecs import hookimpl
 from harness.images import display_variance, encode_srgb, write_png
+from harness.jitter import JITTER_CYCLE, halton_jitter, radical_inverse
 from harness.numba_cache import configure_numba_cache
 from harness.params import Param
 from harness.plugins import PluginConflictError, Registry, load_plugins
@@ -68,6 +69,7 @@ __all__ = [
     "FilterSpec",
     "Frame",
     "FrameMeta",
+    "JITTER_CYCLE",
     "KnownNoiseRenderer",
     "Material",
     "Metric",
@@ -95,10 +97,12 @@ __all__ = [
     "display_variance",
     "encode_srgb",
     "expected_shape",
+    "halton_jitter",
     "hookimpl",
     "kernels",
     "load_backend",
     "load_plugins",
+    "radical_inverse",
     "read_channels",
     "read_size",
     "read_texture",

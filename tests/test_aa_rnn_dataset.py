@@ -79,7 +79,7 @@ def test_crop_camera_keeps_the_large_frames_pixel_size_and_aims_at_the_crop():
 
 
 def test_writer_stores_compressed_sequences_with_gbuffer_motion_and_ssaa(tiny):
-    from plugins.renderers.raster.jitter import halton_jitter
+    from harness import halton_jitter
 
     manifest = DS.read_manifest(tiny)
     assert manifest["complete"] and manifest["splits"] == {"train": 3, "validation": 1, "test": 1}

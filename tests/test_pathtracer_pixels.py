@@ -13,9 +13,8 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from harness import CameraPath, Material, Scene, SceneObject
+from harness import JITTER_CYCLE, CameraPath, Material, Scene, SceneObject, halton_jitter
 from plugins.renderers.pathtracer import PathTracer
-from plugins.renderers.pathtracer.pixel_sampling import JITTER_CYCLE, halton_jitter
 from plugins.renderers.pathtracer.pixels import PixelState
 
 SIZE = (24, 16)

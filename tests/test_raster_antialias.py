@@ -5,8 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness import CameraPath, Environment, Material, Scene, SceneObject, Sun, load_plugins
-from plugins.renderers.raster.jitter import JITTER_CYCLE, halton_jitter
+from harness import (
+    JITTER_CYCLE,
+    CameraPath,
+    Environment,
+    Material,
+    Scene,
+    SceneObject,
+    Sun,
+    halton_jitter,
+    load_plugins,
+)
 from plugins.renderers.raster.shading import ggx_lobe, sun_irradiance
 
 

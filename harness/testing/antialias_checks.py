@@ -13,20 +13,11 @@ from __future__ import annotations
 import numpy as np
 
 from harness.buffers import FrameMeta, check_filter_output
+from harness.jitter import JITTER_CYCLE, halton_jitter
 from harness.testing.frames import make_frame
 
-
-def _halton(index: int, base: int) -> float:
-    result, scale = 0.0, 1.0 / base
-    while index > 0:
-        index, digit = divmod(index, base)
-        result += digit * scale
-        scale /= base
-    return result
-
-
 #: the first 16 points of the Halton (2, 3) sequence (index 1..16), centred on the pixel
-_JITTER = [(_halton(k, 2) - 0.5, _halton(k, 3) - 0.5) for k in range(1, 17)]
+_JITTER = [halton_jitter(t) for t in range(JITTER_CYCLE)]
 
 
 def _channels(spec) -> frozenset:

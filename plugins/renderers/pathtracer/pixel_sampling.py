@@ -3,7 +3,7 @@
 **Noisy frames** (``render``, the adaptive ``sampler``): every sample of a pixel starts at one
 first hit, as a rasterized G-buffer has it, so colour and G-buffer agree pixel for pixel. That
 hit is through the pixel centre, or with ``jitter`` through the centre shifted by the frame's
-Halton (2, 3) offset (:func:`halton_jitter`: point ``(frame mod 16) + 1`` of the sequence, in
+Halton (2, 3) offset (:func:`harness.halton_jitter`: point ``(frame mod 16) + 1`` of the sequence, in
 [-0.5, 0.5) pixels, the raster renderer's and TAA engines' sequence), the same for every pixel
 of the frame.
 
@@ -24,29 +24,11 @@ from numba import njit
 
 from .rng import stream_key, uniform
 
-#: frames in the jitter cycle (frame t uses Halton point (t mod JITTER_CYCLE) + 1)
-JITTER_CYCLE = 16
 #: samples per stratified block of a pixel-area reference (2 x 2 quarters)
 BLOCK = 4
 #: random-number dimensions of the sub-pixel position (far above the path's 8 per bounce)
 SUBPIXEL_DIM = 1 << 20
 REFERENCE_PIXELS = ("area", "centre")
-
-
-def radical_inverse(index: int, base: int) -> float:
-    """The van der Corput radical inverse of ``index`` in ``base`` (in [0, 1))."""
-    result, scale = 0.0, 1.0 / base
-    while index > 0:
-        index, digit = divmod(index, base)
-        result += digit * scale
-        scale /= base
-    return result
-
-
-def halton_jitter(frame: int) -> tuple[float, float]:
-    """The frame's sub-pixel offset (x right, y down) in pixels, each in [-0.5, 0.5)."""
-    index = int(frame) % JITTER_CYCLE + 1
-    return radical_inverse(index, 2) - 0.5, radical_inverse(index, 3) - 0.5
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -61,4 +43,4 @@ def subpixel(seed, frame, pixel, sample):
     return x - 0.5, y - 0.5
 
 
-__all__ = ["BLOCK", "JITTER_CYCLE", "REFERENCE_PIXELS", "halton_jitter", "radical_inverse", "subpixel"]
+__all__ = ["BLOCK", "REFERENCE_PIXELS", "subpixel"]

@@ -7,12 +7,12 @@ from collections import OrderedDict
 import numba
 import numpy as np
 
-from harness import Frame, FrameMeta, Scene
+from harness import Frame, FrameMeta, Scene, halton_jitter
 
 from .gbuffer import gbuffer
 from .integrator import STRATEGIES, accumulate_area, accumulate_samples, first_hits
 from .materials import ONE_SIDED_EMISSION
-from .pixel_sampling import REFERENCE_PIXELS, halton_jitter
+from .pixel_sampling import REFERENCE_PIXELS
 from .pixels import PixelState
 from .sampler import PathSampler
 from .scenedata import SceneData, build_scene_data

@@ -8,10 +8,9 @@ from math import isqrt
 
 import numpy as np
 
-from harness import Frame, FrameMeta
+from harness import Frame, FrameMeta, halton_jitter
 
 from .attributes import TextureTable, surface_kernel
-from .jitter import halton_jitter
 from .motion import motion_vectors
 from .shading import environment_image, shade, specular_table
 from .visibility import VisibilityRasterizer

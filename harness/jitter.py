@@ -1,4 +1,8 @@
-"""Sub-pixel jitter sequences for temporal anti-aliasing."""
+"""Sub-pixel jitter of real-time renderers: the Halton (2, 3) cycle engines use with TAA.
+
+Shared by the renderers that jitter their frames (``raster``, ``pathtracer`` with ``jitter``) and
+by the anti-aliasing checks, so every jittered frame of the harness follows one sequence.
+"""
 
 from __future__ import annotations
 
@@ -25,3 +29,6 @@ def halton_jitter(frame: int, cycle: int = JITTER_CYCLE) -> tuple[float, float]:
     """
     index = frame % cycle + 1
     return radical_inverse(index, 2) - 0.5, radical_inverse(index, 3) - 0.5
+
+
+__all__ = ["JITTER_CYCLE", "halton_jitter", "radical_inverse"]
