@@ -27,8 +27,10 @@ with a message without it. Only the ``scalar_rgb`` variant is used.
 
 from __future__ import annotations
 
+import multiprocessing
 import textwrap
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
@@ -180,12 +182,30 @@ def write_case(folder, bsdf: str, light: str, *, open_top=False):
     return folder / "scene.xml"
 
 
-def render_mitsuba(xml_path) -> np.ndarray:
-    """(SEEDS, H, W, 3) float64 renders of Mitsuba 3 ``scalar_rgb``."""
+def _mitsuba_images(xml_path: str) -> np.ndarray:
     mi.set_variant("scalar_rgb")
-    scene = mi.load_file(str(xml_path))
+    scene = mi.load_file(xml_path)
     return np.stack([np.asarray(mi.render(scene, seed=seed, spp=MITSUBA_SPP), np.float64)[..., :3]
                      for seed in range(SEEDS)])
+
+
+@pytest.fixture(scope="module", autouse=True)
+def mitsuba_process():
+    """One fresh process renders Mitsuba 3's images: this test process may already hold another
+    variant's state (the ``mitsuba`` renderer's ``llvm_ad_rgb``), which ``scalar_rgb`` need not meet."""
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        POOL[:] = [pool]
+        yield pool
+        POOL.clear()
+
+
+#: the module's Mitsuba process (:func:`mitsuba_process`)
+POOL: list = []
+
+
+def render_mitsuba(xml_path) -> np.ndarray:
+    """(SEEDS, H, W, 3) float64 renders of Mitsuba 3 ``scalar_rgb``, made in the module's own process."""
+    return POOL[0].submit(_mitsuba_images, str(xml_path)).result()
 
 
 def render_harness(xml_path):
