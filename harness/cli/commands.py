@@ -340,7 +340,7 @@ def cmd_show(registry, args) -> int:
         if m and m.get("command"):
             text += [f"Command: `{m['command']}`", ""]
         for task, tier, part in boards:
-            heading = f"## WorkUnit {task}" + (f", tier {tier or 'unrecorded'}" if several else "")
+            heading = f"## Task {task}" + (f", tier {tier or 'unrecorded'}" if several else "")
             text += [heading, "", _board_title(task, part, df, tier if several else None) + ".", "",
                      to_markdown(board_table(part))]
         agreement = rank_agreement(boards)

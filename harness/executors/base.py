@@ -143,7 +143,7 @@ class Executor(ABC):
 
         Parameters
         ----------
-        work units : sequence of WorkUnit
+        tasks : sequence of WorkUnit
         progress : callable, optional
             Called with progress units as work units report them (for a progress bar).
         """
