@@ -186,9 +186,10 @@ def _cached_reference(store, group, t: int) -> bool:
     spp = group.reference_spp
     try:
         scene = store.scene(group.scene)
-        if store.registry.renderers[group.renderer].chunked:
+        spec = store.registry.renderers[group.renderer]
+        if spec.chunked:
             key = store.key("reference-moments", scene, group.renderer, t, spp=spp, seed=REFERENCE_SEED,
-                            target=float(group.reference_target), batch=batch_size(spp))
+                            target=float(group.reference_target), batch=batch_size(spp, spec.sample_block))
         else:
             key = store.key("reference", scene, group.renderer, t, spp=spp, seed=REFERENCE_SEED)
     except Exception:

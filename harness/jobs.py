@@ -253,10 +253,23 @@ def changed_channels(seen: Frame, frame: Frame) -> list[str]:
 
 
 def emitter_mask(frame: Frame) -> np.ndarray | None:
-    """Pixels to score: True where the first hit is not an emitter (None without ``emission``)."""
+    """Pixels to score: True where neither the pixel's first hit nor that of any of its eight
+    neighbours is an emitter (None without ``emission``).
+
+    The ring of neighbours goes too because a pixel-area reference is box-filtered over the
+    pixel: an edge pixel of a lamp holds part of the lamp's HDR radiance, which a frame traced
+    through the pixel centre does not see, and whose noise in a 64-spp Cornell reference held
+    93% of the reference's variance over the scored pixels.
+    """
     if "emission" not in frame:
         return None
-    return ~(np.asarray(frame["emission"]) > 0.0).any(axis=-1)
+    lit = np.pad((np.asarray(frame["emission"]) > 0.0).any(axis=-1), 1)
+    h, w = lit.shape[0] - 2, lit.shape[1] - 2
+    near = np.zeros((h, w), bool)
+    for dy in range(3):
+        for dx in range(3):
+            near |= lit[dy:dy + h, dx:dx + w]
+    return ~near
 
 
 def _variance(inputs: GroupInputs, t: int):

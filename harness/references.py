@@ -10,9 +10,12 @@ and estimates that variance by batch means: with batch sums ``S_k`` of ``n_k`` s
     var_of_mean = (sum S_k^2 / n_k - (sum S_k)^2 / N) / ((K - 1) N),
 
 which is unbiased for independent batches whatever their sizes (each ``S_k / n_k`` has
-variance ``sigma^2 / n_k``). The batch size depends only on the sample cap
-(``max(1, cap // BATCHES_AT_CAP)``), never on how the work is chunked or distributed, so the
-same inputs give the same image and variance bit for bit.
+variance ``sigma^2 / n_k``). The batch size depends only on the sample cap and the renderer's
+``sample_block`` (``max(1, cap // BATCHES_AT_CAP)`` rounded up to whole blocks: samples
+stratified together are correlated, and a batch holding part of a block would not be
+independent of the batch holding the rest; the path tracer's pixel-area references stratify
+blocks of four, and batches of one sample overstated their variance 1.5x), never on how the
+work is chunked or distributed, so the same inputs give the same image and variance bit for bit.
 
 With a ``target`` the reference stops as soon as its **median relative standard error**
 (:func:`relative_error`) is at or below the target, or at the cap: the first check comes after
@@ -75,9 +78,11 @@ class ReferenceRecord:
         return array_hash(self.image)
 
 
-def batch_size(cap: int) -> int:
-    """Samples per batch of a reference capped at ``cap`` samples per pixel."""
-    return max(1, int(cap) // BATCHES_AT_CAP)
+def batch_size(cap: int, block: int = 1) -> int:
+    """Samples per batch of a reference capped at ``cap`` samples per pixel: ``cap // BATCHES_AT_CAP``
+    rounded up to whole blocks of ``block`` samples (the renderer's ``sample_block``)."""
+    block = max(1, int(block))
+    return -(-max(1, int(cap) // BATCHES_AT_CAP) // block) * block
 
 
 class BatchMoments:
@@ -204,7 +209,7 @@ def reference_record(
         return ReferenceRecord(image, None, int(spp), math.nan, float(target))
     if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
         raise ValueError(f"reference spp of renderer {renderer!r} must be an integer >= 1, got {spp!r}")
-    batch = batch_size(spp)
+    batch = batch_size(spp, spec.sample_block)
     key = store.key("reference-moments", scene, renderer, frame_index, spp=spp, seed=seed,
                     target=float(target), batch=batch)
     w, h = store.resolution(scene)

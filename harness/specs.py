@@ -269,6 +269,10 @@ class RendererSpec:
         Tiers (:data:`TIERS`) of the scenes of its kinds that it renders (default: every tier;
         ``mitsuba`` renders the ``real`` tier's Mitsuba XML scenes only). Elsewhere the planner
         skips it with the reason.
+    sample_block : int
+        Samples of a pixel that a chunked renderer draws together (stratified, so correlated
+        with each other): a reference's batches are whole blocks, so that the batch-means
+        variance sees independent batches (1: every sample independent).
     """
 
     name: str
@@ -285,9 +289,12 @@ class RendererSpec:
     reference_noise: bool = False
     deterministic: bool = False
     scene_tiers: frozenset = frozenset(TIERS)
+    sample_block: int = 1
 
     def __post_init__(self):
         object.__setattr__(self, "provides", _check_channels(f"renderer {self.name!r}", self.provides))
+        if isinstance(self.sample_block, bool) or not isinstance(self.sample_block, int) or self.sample_block < 1:
+            raise ValueError(f"renderer {self.name!r}: sample_block must be an integer >= 1, got {self.sample_block!r}")
         object.__setattr__(self, "scene_kinds", frozenset(self.scene_kinds))
         object.__setattr__(self, "scene_tiers", frozenset(self.scene_tiers))
         if not self.scene_tiers <= frozenset(TIERS):
@@ -306,6 +313,7 @@ class RendererSpec:
             "reference_noise": self.reference_noise,
             "deterministic": self.deterministic,
             "scene_tiers": sorted(self.scene_tiers),
+            "sample_block": self.sample_block,
             "tasks": sorted(self.tasks),
         }
 

@@ -116,7 +116,11 @@ def test_emitter_mask_from_the_emission_channel():
     emission[1, 2] = (17.0, 12.0, 4.0)
     frame = Frame({"color": np.zeros((3, 4, 3), np.float32), "emission": emission}, FrameMeta(index=0))
     mask = emitter_mask(frame)
-    assert mask.sum() == 11 and not mask[1, 2]
+    assert mask.tolist() == [[True, False, False, False], [True, False, False, False], [True, False, False, False]]
+    corner = np.zeros((3, 4, 3), np.float32)
+    corner[0, 0, 1] = 1e-6
+    frame = Frame({"color": np.zeros((3, 4, 3), np.float32), "emission": corner}, FrameMeta(index=0))
+    assert emitter_mask(frame).sum() == 12 - 4
     assert emitter_mask(Frame({"color": np.zeros((3, 4, 3), np.float32)}, FrameMeta(index=0))) is None
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import time
+import tracemalloc
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -95,7 +96,7 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
     """
     tick = progress or (lambda n: None)
     result = CaseResult()
-    memory = _PeakMemory()
+    memory = _PeakMemory(traced=memory_bound)
     try:
         filt = spec.factory(backend=backend, **params)
         filt.reset()
@@ -121,6 +122,7 @@ def run_sequence(spec, backend: str, params: dict, sequence: Sequence, *, flat: 
 
                 cuda.synchronize()
         except (Exception, SystemExit) as exc:
+            memory.after_call()
             if rejects and isinstance(exc, ValueError):
                 result.status, result.message, result.frame = "rejected", short_error(exc), t
                 return _finish(result, times, memory)
@@ -181,29 +183,46 @@ def _why(exc: BaseException) -> str:
 
 
 class _PeakMemory:
-    """The largest growth of the resident set size during a filter call (:func:`harness.memory.rss_mark`;
-    NaN where it cannot be measured).
+    """The largest growth of the process's memory during a filter call, MiB: the rise of the
+    resident set size (:func:`harness.memory.rss_mark`) and, when ``traced`` (the memory-bound
+    cases), the peak of the bytes :mod:`tracemalloc` saw allocated (NumPy's arrays among them),
+    whichever is larger; NaN where neither is measured.
 
-    Building the case's frames is outside the calls, so it does not count.
+    Building the case's frames is outside the calls, so it does not count. The traced peak keeps
+    the bound where the resident size's high-water mark cannot be reset (a container without
+    ``/proc/self/clear_refs``), where the bound would otherwise pass every call.
     """
 
-    def __init__(self):
+    def __init__(self, traced: bool = False):
         self.peak = 0.0
         self.known = True
+        self.traced = traced
         self.mark = math.nan
+        self.start = 0
+        self.was_tracing = False
 
     def before_call(self) -> None:
-        if self.known:
-            self.mark = rss_mark()
+        self.mark = rss_mark() if self.known else math.nan
+        if self.traced:
+            self.was_tracing = tracemalloc.is_tracing()
+            if not self.was_tracing:
+                tracemalloc.start()
+            tracemalloc.reset_peak()
+            self.start = tracemalloc.get_traced_memory()[0]
 
     def after_call(self) -> float:
         """Growth during the call just made, MiB (and keep the largest)."""
         growth = rss_rise(self.mark) / 2**20 if self.known else math.nan
         if math.isnan(growth):
             self.known = False
-        else:
+        if self.traced:
+            traced = max(tracemalloc.get_traced_memory()[1] - self.start, 0) / 2**20
+            if not self.was_tracing:
+                tracemalloc.stop()
+            growth = traced if math.isnan(growth) else max(growth, traced)
+        if not math.isnan(growth):
             self.peak = max(self.peak, growth)
         return growth
 
     def growth_mb(self) -> float:
-        return self.peak if self.known else math.nan
+        return self.peak if self.known or self.traced else math.nan

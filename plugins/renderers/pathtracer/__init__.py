@@ -8,6 +8,7 @@ See ``docs/pathtracer.md``.
 
 from harness import CHANNELS, RendererSpec, hookimpl
 
+from .pixel_sampling import BLOCK
 from .renderer import PathTracer
 
 VERSION = "1.0"
@@ -27,6 +28,7 @@ def register_renderers():
             scene_kinds=frozenset({"mesh"}),
             reference_spp=REFERENCE_SPP,
             chunked=True,
+            sample_block=BLOCK,
             tasks={"denoise"},
             description="Numba CPU path tracer: SAH BVH, NEE + MIS, GGX materials, sun/sky/env lights",
         )
