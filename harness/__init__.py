@@ -32,7 +32,7 @@ from harness.protocols import (
     Renderer,
     StageTimedFilter,
 )
-from harness.sampling import Sampler
+from harness.sampling import Sampler, StreamSampler
 from harness.scene import (
     CameraPath,
     Environment,
@@ -81,6 +81,7 @@ __all__ = [
     "Renderer",
     "RendererSpec",
     "Sampler",
+    "StreamSampler",
     "Scene",
     "SceneObject",
     "SceneSpec",

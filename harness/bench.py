@@ -146,8 +146,6 @@ class BenchUnit(WorkUnit):
         return f"{j.filter}/{j.backend} at {j.width}x{j.height}{threads}"
 
     def run(self, context: WorkerContext, shared: GroupInputs) -> BenchMeasure:
-        if shared is None:
-            raise RuntimeError("the worker does not hold this bench's frames")
         job = self.job
         with using_threads(self.threads) as count:
             measure = BenchMeasure(threads=count)
@@ -167,7 +165,7 @@ class BenchUnit(WorkUnit):
                 return measure
             measure.timing.update({k: v for k, v in timing.items() if k != "compile_ms"})
             if self.score:
-                measure.rmse = _rmse(context.registry, out, shared, job)
+                measure.rmse = output_rmse(context.registry, out, shared, job)
             if job.backend == "cpu":
                 try:
                     measure.floor = time_floor(spec, frames, job.repeats)
@@ -183,7 +181,7 @@ class BenchUnit(WorkUnit):
         return measure
 
 
-def _rmse(registry, out, inputs: GroupInputs, job: Job) -> float:
+def output_rmse(registry, out, inputs: GroupInputs, job: Job) -> float:
     """``rmse`` of ``out`` against the last frame's reference, emitters left out as in a job."""
     mspec = registry.get("metric", "rmse")
     extra = {}
@@ -240,13 +238,13 @@ def bench_environment() -> dict:
     versions = package_versions()
     return {
         "cpu": cpu_model(), "cores": os.cpu_count(), "max_threads": max_threads(),
-        "load_start": _load(), "python": sys.version.split()[0],
+        "load_start": load_average(), "python": sys.version.split()[0],
         "versions": {k: versions.get(k) for k in keep if versions.get(k)},
         "date": time.strftime("%Y-%m-%d %H:%M %Z"),
     }
 
 
-def _load() -> float:
+def load_average() -> float:
     try:
         return round(os.getloadavg()[0], 2)
     except OSError:
@@ -334,7 +332,7 @@ def bench_filters(
     rows, stages = [], []
     for width, height in resolutions:
         sized = RenderStore(registry, store.cache, resolution=(width, height))
-        inputs = _inputs(sized, scene, rname, rspec, frames, channels, with_reference=metric is not None)
+        inputs = bench_inputs(sized, scene, rname, rspec, frames, channels, with_reference=metric is not None)
         shared = Shared(make_key(bench=[scene, rname, width, height, frames]), inputs)
         tasks = []
         for count in threads:
@@ -352,9 +350,9 @@ def bench_filters(
             say(f"{row['filter']} at {row['resolution']}, {row['threads']} thread(s): "
                 + (f"{row['ms_median']:.4g} ms, floor {row['floor_ms']:.4g} ms" if row["status"] == "ok"
                    else row["status"]))
-    table = _typed(pd.DataFrame(rows), with_rmse=metric is not None)
+    table = typed_table(pd.DataFrame(rows), with_rmse=metric is not None)
     add_ratios(table, peers, resolutions, threads)
-    environment["load_end"] = _load()
+    environment["load_end"] = load_average()
     return BenchResult(table, pd.DataFrame(stages), environment)
 
 
@@ -387,31 +385,55 @@ def _table_row(bench_task: BenchUnit, outcome, pixels: int, metric: str | None) 
         return {**base, "status": outcome.error if measure is None else measure.status}, None
     timing, floor = measure.timing, measure.floor
     floor_ms, floor_cpu = floor.get("ms_median", math.nan), floor.get("cpu_ms_median", math.nan)
-    frame_bytes = pixels * 3 * 4
-    traced, rss = measure.memory if measure.memory is not None else (math.nan, math.nan)
-    peak = max(traced, rss) if not math.isnan(rss) else traced
-    row = {
-        **base, "ms_median": timing["ms_median"], "ms_min": timing["ms_min"], "ms_max": timing["ms_max"],
-        "cpu_ms": timing["cpu_ms_median"], "compile_ms": timing["compile_ms"], "floor_ms": floor_ms,
-        "floor_cpu_ms": floor_cpu, "x_of_floor": _ratio(timing["ms_median"], floor_ms),
-        "x_of_floor_cpu": _ratio(timing["cpu_ms_median"], floor_cpu),
-        "peak_mb": peak / MB, "peak_frames": peak / frame_bytes, "traced_mb": traced / MB, "rss_mb": rss / MB,
-        "status": "ok", "notes": "; ".join(measure.notes),
-    }
+    row = timing_row(base, ms=(timing["ms_median"], timing["ms_min"], timing["ms_max"]),
+                     cpu_ms=timing["cpu_ms_median"], compile_ms=timing["compile_ms"], floor=(floor_ms, floor_cpu),
+                     x_of_floor=(_ratio(timing["ms_median"], floor_ms), _ratio(timing["cpu_ms_median"], floor_cpu)),
+                     memory=measure.memory, pixels=pixels, notes=measure.notes)
     if metric:
         row["rmse"] = measure.rmse
-    stage = None
-    if timing.get("stage_ms"):  # a stage named like a key column (sbf's "filter") gets " (stage)"
-        stages = json.loads(timing["stage_ms"])
-        stage = {**base, **{(f"{k} (stage)" if k in base else k): v for k, v in stages.items()}}
-    return row, stage
+    return row, stage_row(base, timing.get("stage_ms"))
+
+
+def timing_row(base: dict, *, ms, cpu_ms: float, compile_ms: float, floor, x_of_floor, memory, pixels: int,
+               notes) -> dict:
+    """A table row of a timed filter (the columns of :data:`COLUMNS` but ``rmse``).
+
+    Parameters
+    ----------
+    base : dict
+        ``filter``, ``resolution`` and ``threads``.
+    ms : (float, float, float)
+        Median, minimum and maximum wall milliseconds per call.
+    cpu_ms, compile_ms : float
+    floor, x_of_floor : (float, float)
+        The floor's wall and CPU milliseconds, and the filter's ratios to them.
+    memory : (float, float) or None
+        Traced and resident peak bytes (NaN: not measured).
+    pixels : int
+    notes : sequence of str
+    """
+    traced, rss = memory if memory is not None else (math.nan, math.nan)
+    peak = max(traced, rss) if not math.isnan(rss) else traced
+    return {**base, "ms_median": ms[0], "ms_min": ms[1], "ms_max": ms[2], "cpu_ms": cpu_ms, "compile_ms": compile_ms,
+            "floor_ms": floor[0], "floor_cpu_ms": floor[1], "x_of_floor": x_of_floor[0],
+            "x_of_floor_cpu": x_of_floor[1], "peak_mb": peak / MB, "peak_frames": peak / (pixels * 3 * 4),
+            "traced_mb": traced / MB, "rss_mb": rss / MB, "status": "ok", "notes": "; ".join(notes)}
+
+
+def stage_row(base: dict, stage_ms: str | None) -> dict | None:
+    """The per-stage row of a call's ``stage_ms`` JSON (None without one); a stage named like a key
+    column (sbf's "filter") gets " (stage)"."""
+    if not stage_ms:
+        return None
+    stages = json.loads(stage_ms)
+    return {**base, **{(f"{k} (stage)" if k in base else k): v for k, v in stages.items()}}
 
 
 def _ratio(a: float, b: float) -> float:
     return a / b if b > 0 else math.nan
 
 
-def _typed(table: pd.DataFrame, with_rmse: bool, extra: Sequence[str] = ()) -> pd.DataFrame:
+def typed_table(table: pd.DataFrame, with_rmse: bool, extra: Sequence[str] = ()) -> pd.DataFrame:
     """The fixed columns in :data:`COLUMNS` order and dtypes (missing values: NaN, ""), then the
     ``extra`` numeric ones (float64)."""
     columns = {k: v for k, v in COLUMNS.items() if with_rmse or k != "rmse"}
@@ -449,7 +471,7 @@ def add_ratios(table: pd.DataFrame, peers, resolutions, threads) -> None:
         table[f"speedup_vs_{counts[0]}t"] = [ratio(lookup((f, r, counts[0])), m) for (f, r, _), m in zip(keys, own)]
 
 
-def _inputs(store: RenderStore, scene: str, renderer: str, rspec, frames: int, channels,
+def bench_inputs(store: RenderStore, scene: str, renderer: str, rspec, frames: int, channels,
             with_reference: bool) -> GroupInputs:
     inputs = GroupInputs([], [], [], [], channels=channels)
     for t in range(frames):

@@ -34,14 +34,16 @@ import pandas as pd
 
 from harness.bench import (
     BenchResult,
-    _inputs,
-    _load,
-    _rmse,
-    _typed,
     add_ratios,
     bench_environment,
+    bench_inputs,
     filter_memory,
+    load_average,
+    output_rmse,
     sequence_frames,
+    stage_row,
+    timing_row,
+    typed_table,
 )
 from harness.bench_baseline import baseline_spec, module_name, plugin_path, resolve_revision, revision_tree
 from harness.buffers import check_filter_output
@@ -142,8 +144,6 @@ class RoundsTask(WorkUnit):
         return f"{len(self.entries)} entries at {job.width}x{job.height}, {self.rounds} rounds"
 
     def run(self, context: WorkerContext, shared: GroupInputs) -> RoundsMeasure:
-        if shared is None:
-            raise RuntimeError("the worker does not hold this bench's frames")
         measure = RoundsMeasure()
         built = {}
         for entry in self.entries:
@@ -182,7 +182,7 @@ class RoundsTask(WorkUnit):
             if entry.role == "floor":
                 continue
             if self.score:
-                mine.rmse = _rmse(context.registry, outputs[key], shared, entry.job)
+                mine.rmse = output_rmse(context.registry, outputs[key], shared, entry.job)
             with using_threads(entry.threads):
                 try:
                     peak = filter_memory(spec, entry.job, shown)
@@ -291,24 +291,21 @@ def _rows(task: RoundsTask, measure: RoundsMeasure, metric: str | None) -> tuple
         floor_key = f"floor({entry.label})|{entry.threads}"
         floor = got.get(floor_key)
         floor_ok = floor is not None and floor.status == "ok" and floor.ms
-        traced, rss = mine.memory if mine.memory is not None else (math.nan, math.nan)
-        peak = max(traced, rss) if not math.isnan(rss) else traced
-        row = {**base, "ms_median": _median(mine.ms), "ms_min": min(mine.ms), "ms_max": max(mine.ms),
-               "cpu_ms": _median(mine.cpu_ms), "compile_ms": mine.compile_ms,
-               "floor_ms": _median(floor.ms) if floor_ok else math.nan,
-               "floor_cpu_ms": _median(floor.cpu_ms) if floor_ok else math.nan,
-               "x_of_floor": _median(_per_round(mine.ms, floor.ms)) if floor_ok else math.nan,
-               "x_of_floor_cpu": _median(_per_round(mine.cpu_ms, floor.cpu_ms)) if floor_ok else math.nan,
-               "peak_mb": peak / 1e6, "peak_frames": peak / (pixels * 12), "traced_mb": traced / 1e6,
-               "rss_mb": rss / 1e6, "status": "ok", "notes": "; ".join(mine.notes), "rounds": len(mine.ms)}
+        floors = (_median(floor.ms), _median(floor.cpu_ms)) if floor_ok else (math.nan, math.nan)
+        x_of_floor = ((_median(_per_round(mine.ms, floor.ms)), _median(_per_round(mine.cpu_ms, floor.cpu_ms)))
+                      if floor_ok else (math.nan, math.nan))
+        row = timing_row(base, ms=(_median(mine.ms), min(mine.ms), max(mine.ms)), cpu_ms=_median(mine.cpu_ms),
+                         compile_ms=mine.compile_ms, floor=floors, x_of_floor=x_of_floor, memory=mine.memory,
+                         pixels=pixels, notes=mine.notes)
+        row["rounds"] = len(mine.ms)
         if metric:
             row["rmse"] = mine.rmse
         if task.balance:
             row["busiest_share"], row["thread_spread"] = balance(mine.thread_cpu)
         rows.append(row)
-        if mine.stage_ms:
-            stage = json.loads(mine.stage_ms)
-            stages.append({**base, **{(f"{k} (stage)" if k in base else k): v for k, v in stage.items()}})
+        stage = stage_row(base, mine.stage_ms)
+        if stage is not None:
+            stages.append(stage)
         # the ratios: peers, the first filter, the floor, the first thread count, the baseline
         same = [e for e in task.entries if e.threads == entry.threads and e.key != entry.key]
         if entry.role == "filter":
@@ -402,7 +399,7 @@ def bench_rounds(
                 baselines[n] = (baseline, str(tree / path), module_name(commit, n))
         for width, height in resolutions:
             sized = RenderStore(registry, store.cache, resolution=(width, height))
-            inputs = _inputs(sized, scene, rname, rspec, frames, channels, with_reference=metric is not None)
+            inputs = bench_inputs(sized, scene, rname, rspec, frames, channels, with_reference=metric is not None)
             shared = Shared(make_key(bench=[scene, rname, width, height, frames]), inputs)
             entries = entries_for(specs, configured, roles, task=task, scene=scene, renderer=rname, backend=backend,
                                   size=(width, height), frames=frames, threads=threads, baselines=baselines,
@@ -426,9 +423,9 @@ def bench_rounds(
                         + (f"{row['ms_median']:.4g} ms over {row['rounds']} rounds" if row["status"] == "ok"
                            else row["status"]))
     extra = ["rounds"] + (["busiest_share", "thread_spread"] if balance else [])
-    table = _typed(pd.DataFrame(rows), with_rmse=metric is not None, extra=extra)
+    table = typed_table(pd.DataFrame(rows), with_rmse=metric is not None, extra=extra)
     add_ratios(table, peers, resolutions, threads)
-    environment["load_end"] = _load()
+    environment["load_end"] = load_average()
     ratio_table = pd.DataFrame(ratios, columns=list(RATIO_COLUMNS))
     return BenchResult(table, pd.DataFrame(stages), environment, ratios=ratio_table, order=order)
 

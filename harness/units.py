@@ -39,8 +39,6 @@ class JobUnit(WorkUnit):
         return f"{j.filter}/{j.backend} on {j.scene}"
 
     def run(self, context: WorkerContext, shared: GroupInputs) -> JobResult:
-        if shared is None:
-            raise RuntimeError("the worker does not hold this job's inputs")
         spec = context.registry.get("filter", self.job.filter)
         rspec = context.registry.renderers.get(self.job.renderer)
         renderer = None
@@ -86,8 +84,6 @@ class FrameUnit(WorkUnit):
         return f"frame {self.frame_index} of {self.scene} ({self.renderer}, {self.spp} spp, seed {self.seed})"
 
     def run(self, context: WorkerContext, shared) -> dict:
-        if shared is None:
-            raise RuntimeError("the worker does not hold this frame's scene")
         frame = context.renderer(self.renderer, self.settings).render(
             shared, self.frame_index, spp=self.spp, seed=self.seed, channels=frozenset(self.channels),
             resolution=tuple(self.resolution))
@@ -132,8 +128,6 @@ class ChunkUnit(WorkUnit):
     def run(self, context: WorkerContext, shared):
         import numpy as np
 
-        if shared is None:
-            raise RuntimeError("the worker does not hold this chunk's scene")
         total = context.renderer(self.renderer, self.settings).accumulate(
             shared, self.frame_index, first_sample=self.first_sample, count=self.count, seed=self.seed,
             resolution=tuple(self.resolution))

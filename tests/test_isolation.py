@@ -120,3 +120,19 @@ def test_a_worker_that_cannot_load_the_plugins_is_an_error_outcome():
 
 def test_load_plugins_is_unaffected(faulty):
     assert {"hang", "segv"} <= set(load_plugins().filters)
+
+
+def test_a_unit_whose_shared_input_the_worker_does_not_hold_is_an_error_outcome():
+    """The executors refuse it in one place (``WorkUnit.run_held``): no work unit checks it itself."""
+    from harness.executors import InlineExecutor
+    from harness.executors.base import Shared
+
+    probe = Probe()
+    probe.shared = Shared("frames", None)
+    with InlineExecutor(load_plugins()) as ex:
+        (_, outcome), = list(ex.run([probe]))
+    assert not outcome.ok and "the worker does not hold the shared input of probe" in outcome.error
+    probe.shared = Shared("frames", [1, 2])
+    with InlineExecutor(load_plugins()) as ex:
+        (_, outcome), = list(ex.run([probe]))
+    assert outcome.ok

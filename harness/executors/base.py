@@ -42,6 +42,13 @@ class WorkUnit(ABC):
     def run(self, context: WorkerContext, shared: Any) -> Any:
         """Do the work; ``shared`` is ``self.shared.value`` as held by the worker."""
 
+    def run_held(self, context: WorkerContext, shared: Any) -> Any:
+        """:meth:`run`, refused (one line) where the unit has a shared input the worker does not hold;
+        executors call this, so no work unit checks it itself."""
+        if self.shared is not None and shared is None:
+            raise RuntimeError(f"the worker does not hold the shared input of {self.label}")
+        return self.run(context, shared)
+
     def without_shared(self) -> WorkUnit:
         """A copy without the shared value (what travels when the worker holds it)."""
         import copy

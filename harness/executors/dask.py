@@ -154,7 +154,7 @@ def execute(task: WorkUnit, shared, options: WorkerOptions) -> tuple[bool, objec
     with host_slot(exclusive=task.timed):
         _set_threads(None if task.timed else options.threads)
         try:
-            return True, task.run(context, shared), done
+            return True, task.run_held(context, shared), done
         except (Exception, SystemExit) as exc:
             return False, f"{task.label}: {short_error(exc)}", done
 

@@ -43,7 +43,7 @@ class InlineExecutor(Executor):
 
             context.progress = tick
             try:
-                value = task.run(context, task.shared.value if task.shared is not None else None)
+                value = task.run_held(context, task.shared.value if task.shared is not None else None)
             except Exception as exc:
                 yield index, Outcome(False, error=f"{task.label}: {short_error(exc)}", progress=done)
                 continue

@@ -75,7 +75,7 @@ def serve(inbox: Connection, outbox: Connection) -> None:
                 if callable(prepare):
                     prepare(context)
                     outbox.send(("prepared",))
-                result = ("done", task.run(context, shared))
+                result = ("done", task.run_held(context, shared))
             except (Exception, SystemExit) as exc:
                 result = ("failed", f"{task.label}: {short_error(exc)}")
             try:

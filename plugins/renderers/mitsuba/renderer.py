@@ -17,7 +17,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from harness import Frame, FrameMeta, Scene, compute_threads
+from harness import Frame, FrameMeta, Scene, StreamSampler, compute_threads
 
 from . import camera, gbuffer, scenefile
 from .shapes import Poser, match_objects, object_ids
@@ -288,7 +288,5 @@ class MitsubaRenderer:
     def sampler(self, scene: Scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(),
                 resolution=None):
         """An adaptive-sampling service starting with ``spp`` samples in every pixel."""
-        from .sampler import MitsubaSampler
-
-        return MitsubaSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels,
-                              resolution=resolution)
+        return StreamSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels, resolution=resolution,
+                             new_state=PixelSums, owner=OWNER)

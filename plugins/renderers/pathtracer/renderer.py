@@ -7,14 +7,13 @@ from collections import OrderedDict
 import numba
 import numpy as np
 
-from harness import Frame, FrameMeta, Scene, halton_jitter
+from harness import Frame, FrameMeta, Scene, StreamSampler, halton_jitter
 
 from .gbuffer import gbuffer
 from .integrator import STRATEGIES, accumulate_area, accumulate_samples, first_hits
 from .materials import ONE_SIDED_EMISSION
 from .pixel_sampling import REFERENCE_PIXELS
 from .pixels import PixelState
-from .sampler import PathSampler
 from .scenedata import SceneData, build_scene_data
 
 OWNER = "renderer 'pathtracer'"
@@ -290,5 +289,5 @@ class PathTracer:
     def sampler(self, scene: Scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(),
                 resolution=None):
         """An adaptive-sampling service starting with ``spp`` samples in every pixel."""
-        return PathSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels,
-                           resolution=resolution)
+        return StreamSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels, resolution=resolution,
+                             new_state=PixelState, owner=OWNER)
