@@ -45,6 +45,7 @@ from harness.scene import (
     srgb_to_linear,
 )
 from harness.specs import TASKS, TIERS, FilterSpec, MetricSpec, RendererSpec, SceneSpec
+from harness.stream_renderer import StreamRenderer
 from harness.threads import compute_threads
 from harness.transforms import rotation, translation
 
@@ -81,6 +82,7 @@ __all__ = [
     "Renderer",
     "RendererSpec",
     "Sampler",
+    "StreamRenderer",
     "StreamSampler",
     "Scene",
     "SceneObject",

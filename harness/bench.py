@@ -311,23 +311,12 @@ def bench_filters(
     """
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats must be an integer >= 1, got {repeats!r}")
-    threads = list(dict.fromkeys(threads)) or [None]
-    for n in threads:
-        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
-            raise ValueError(f"thread counts must be integers >= 1 (or None), got {n!r}")
+    threads = thread_list(threads)
     environment = bench_environment()
-    peers = [p for p in peers if p not in filters]
-    names = list(dict.fromkeys([*filters, *peers]))
-    specs = [registry.get("filter", n) for n in names]
-    scene_spec = registry.get("scene", scene)
-    rname = renderer or choose_renderer(registry, scene_spec, task)
-    if rname is None:
-        raise ValueError(f"no renderer serves task {task!r} for scene {scene!r}")
-    rspec = registry.get("renderer", rname)
-    configured = {s.name: filter_params(s, (presets or {}).get(s.name), (params or {}).get(s.name, {})) for s in specs}
-    frames = sequence_frames(registry, scene, specs, steady)
-    metric = "rmse" if error and "rmse" in registry.metrics and rspec.references else None
-    channels = frozenset().union(*[(s.requires | s.optional) & rspec.provides for s in specs])
+    setup = BenchSetup.of(registry, filters, peers, scene=scene, renderer=renderer, task=task, params=params,
+                          presets=presets, steady=steady, error=error)
+    peers, specs, rname, rspec = setup.peers, setup.specs, setup.renderer, setup.rspec
+    configured, frames, metric, channels = setup.configured, setup.frames, setup.metric, setup.channels
     say = progress or (lambda line: None)
     rows, stages = [], []
     for width, height in resolutions:
@@ -354,6 +343,67 @@ def bench_filters(
     add_ratios(table, peers, resolutions, threads)
     environment["load_end"] = load_average()
     return BenchResult(table, pd.DataFrame(stages), environment)
+
+
+def thread_list(threads) -> list:
+    """The distinct thread counts in order (``[None]``: the harness's default), each checked."""
+    threads = list(dict.fromkeys(threads)) or [None]
+    for n in threads:
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n < 1):
+            raise ValueError(f"thread counts must be integers >= 1 (or None), got {n!r}")
+    return threads
+
+
+@dataclass
+class BenchSetup:
+    """What a bench times, resolved from its settings (shared by :func:`bench_filters` and
+    :func:`harness.bench_rounds.bench_rounds`).
+
+    Attributes
+    ----------
+    names : list of str
+        The filters, then the peers that are not among them.
+    peers : list of str
+    specs : list of FilterSpec
+        Of ``names``.
+    renderer : str
+    rspec : RendererSpec
+    configured : dict
+        ``name -> (params, preset)`` of each filter (:func:`harness.plan.filter_params`).
+    frames : int
+        Frames per call sequence (:func:`sequence_frames`).
+    metric : str or None
+        ``rmse`` where the error is scored (the renderer makes references), else None.
+    channels : frozenset
+        Every channel any of the filters reads that the renderer provides.
+    """
+
+    names: list
+    peers: list
+    specs: list
+    renderer: str
+    rspec: object
+    configured: dict
+    frames: int
+    metric: str | None
+    channels: frozenset
+
+    @classmethod
+    def of(cls, registry, filters: Sequence[str], peers: Sequence[str], *, scene: str, renderer: str | None,
+           task: str, params: Mapping | None, presets: Mapping | None, steady: int, error: bool) -> BenchSetup:
+        peers = [p for p in peers if p not in filters]
+        names = list(dict.fromkeys([*filters, *peers]))
+        specs = [registry.get("filter", n) for n in names]
+        rname = renderer or choose_renderer(registry, registry.get("scene", scene), task)
+        if rname is None:
+            raise ValueError(f"no renderer serves task {task!r} for scene {scene!r}")
+        rspec = registry.get("renderer", rname)
+        configured = {s.name: filter_params(s, (presets or {}).get(s.name), (params or {}).get(s.name, {}))
+                      for s in specs}
+        metric = "rmse" if error and "rmse" in registry.metrics and rspec.references else None
+        channels = frozenset().union(*[(s.requires | s.optional) & rspec.provides for s in specs])
+        return cls(names, peers, specs, rname, rspec, configured, sequence_frames(registry, scene, specs, steady),
+                   metric, channels)
 
 
 def sequence_frames(registry, scene: str, specs: Sequence, steady: int) -> int:

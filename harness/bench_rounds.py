@@ -34,14 +34,15 @@ import pandas as pd
 
 from harness.bench import (
     BenchResult,
+    BenchSetup,
     add_ratios,
     bench_environment,
     bench_inputs,
     filter_memory,
     load_average,
     output_rmse,
-    sequence_frames,
     stage_row,
+    thread_list,
     timing_row,
     typed_table,
 )
@@ -52,7 +53,7 @@ from harness.errors import filter_error, short_error
 from harness.executors.base import Executor, Shared, WorkerContext, WorkUnit
 from harness.floor import floor_of
 from harness.jobs import GroupInputs
-from harness.plan import Job, choose_renderer, filter_params
+from harness.plan import Job
 from harness.renders import RenderStore
 from harness.threads import balance, thread_cpu_seconds, using_threads
 from harness.timer import round_order, time_frame, timed_call
@@ -372,20 +373,12 @@ def bench_rounds(
     """
     if isinstance(rounds, bool) or not isinstance(rounds, int) or rounds < 1:
         raise ValueError(f"--rounds must be an integer >= 1, got {rounds!r}")
-    threads = list(dict.fromkeys(threads)) or [None]
+    threads = thread_list(threads)
     environment = bench_environment()
-    peers = [p for p in peers if p not in filters]
-    names = list(dict.fromkeys([*filters, *peers]))
-    specs = [registry.get("filter", n) for n in names]
-    scene_spec = registry.get("scene", scene)
-    rname = renderer or choose_renderer(registry, scene_spec, task)
-    if rname is None:
-        raise ValueError(f"no renderer serves task {task!r} for scene {scene!r}")
-    rspec = registry.get("renderer", rname)
-    configured = {s.name: filter_params(s, (presets or {}).get(s.name), (params or {}).get(s.name, {})) for s in specs}
-    frames = sequence_frames(registry, scene, specs, steady)
-    metric = "rmse" if error and "rmse" in registry.metrics and rspec.references else None
-    channels = frozenset().union(*[(s.requires | s.optional) & rspec.provides for s in specs])
+    setup = BenchSetup.of(registry, filters, peers, scene=scene, renderer=renderer, task=task, params=params,
+                          presets=presets, steady=steady, error=error)
+    names, specs, rname, rspec = setup.names, setup.specs, setup.renderer, setup.rspec
+    configured, frames, metric, channels = setup.configured, setup.frames, setup.metric, setup.channels
     roles = {n: ("filter" if n in filters else "peer") for n in names}
     say = progress or (lambda line: None)
     rows, stages, ratios, order = [], [], [], {}
@@ -424,7 +417,7 @@ def bench_rounds(
                            else row["status"]))
     extra = ["rounds"] + (["busiest_share", "thread_spread"] if balance else [])
     table = typed_table(pd.DataFrame(rows), with_rmse=metric is not None, extra=extra)
-    add_ratios(table, peers, resolutions, threads)
+    add_ratios(table, setup.peers, resolutions, threads)
     environment["load_end"] = load_average()
     ratio_table = pd.DataFrame(ratios, columns=list(RATIO_COLUMNS))
     return BenchResult(table, pd.DataFrame(stages), environment, ratios=ratio_table, order=order)

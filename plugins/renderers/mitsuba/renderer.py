@@ -17,7 +17,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from harness import Frame, FrameMeta, Scene, StreamSampler, compute_threads
+from harness import Frame, FrameMeta, Scene, StreamRenderer, compute_threads
 
 from . import camera, gbuffer, scenefile
 from .shapes import Poser, match_objects, object_ids
@@ -81,7 +81,7 @@ class FrameSetup:
         return self._gbuffer
 
 
-class MitsubaRenderer:
+class MitsubaRenderer(StreamRenderer):
     """Mitsuba 3 renderer of scenes loaded from Mitsuba XML.
 
     Parameters
@@ -106,6 +106,9 @@ class MitsubaRenderer:
         filter: each sample's primary ray through a uniform point of the pixel, as Mitsuba 3 and
         the path tracer's references) or take the pixel centre, as the noisy frames do.
     """
+
+    owner = OWNER
+    pixel_state = PixelSums
 
     def __init__(self, variant: str | None = None, max_depth: int | None = None, rr_depth: int = 5,
                  variance_spp: int = 8, reference_pixel: str = "area"):
@@ -276,17 +279,3 @@ class MitsubaRenderer:
         self.add_samples(setup, state, np.full(state.spp.shape, int(count), np.int64), seed, squares=False,
                          area=self.reference_pixel == "area")
         return state.acc.reshape(setup.height, setup.width, 3)
-
-    def reference(self, scene: Scene, frame_index: int, *, spp: int = 4096, seed: int = 0,
-                  resolution=None) -> np.ndarray:
-        """Converged image: ``accumulate(first_sample=0, count=spp) / spp`` as float32 (H, W, 3)."""
-        if int(spp) < 1:
-            raise ValueError(f"{OWNER}: spp must be >= 1, got {spp}")
-        total = self.accumulate(scene, frame_index, first_sample=0, count=spp, seed=seed, resolution=resolution)
-        return (total / float(spp)).astype(np.float32)
-
-    def sampler(self, scene: Scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(),
-                resolution=None):
-        """An adaptive-sampling service starting with ``spp`` samples in every pixel."""
-        return StreamSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels, resolution=resolution,
-                             new_state=PixelSums, owner=OWNER)

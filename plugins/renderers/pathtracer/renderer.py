@@ -7,7 +7,7 @@ from collections import OrderedDict
 import numba
 import numpy as np
 
-from harness import Frame, FrameMeta, Scene, StreamSampler, halton_jitter
+from harness import Frame, FrameMeta, Scene, StreamRenderer, halton_jitter
 
 from .gbuffer import gbuffer
 from .integrator import STRATEGIES, accumulate_area, accumulate_samples, first_hits
@@ -85,7 +85,7 @@ class FrameSetup:
         return out
 
 
-class PathTracer:
+class PathTracer(StreamRenderer):
     """Numba CPU path tracer of ``mesh`` scenes.
 
     Parameters
@@ -105,6 +105,9 @@ class PathTracer:
         References integrate over the pixel area (box filter, stratified; default, as Mitsuba 3)
         or take the pixel centre.
     """
+
+    owner = OWNER
+    pixel_state = PixelState
 
     def __init__(self, max_depth: int | None = None, rr_depth: int = 5, strategy: str = "mis", jitter: bool = False,
                  reference_pixel: str = "area"):
@@ -277,17 +280,3 @@ class PathTracer:
                         np.full(w * h, int(first_sample), np.int64), np.full(w * h, int(count), np.int64), acc,
                         numba.get_num_threads())
         return acc.reshape(h, w, 3)
-
-    def reference(self, scene: Scene, frame_index: int, *, spp: int = 4096, seed: int = 0,
-                  resolution=None) -> np.ndarray:
-        """Converged image: ``accumulate(first_sample=0, count=spp) / spp`` as float32 (H, W, 3)."""
-        if int(spp) < 1:
-            raise ValueError(f"{OWNER}: spp must be >= 1, got {spp}")
-        total = self.accumulate(scene, frame_index, first_sample=0, count=spp, seed=seed, resolution=resolution)
-        return (total / float(spp)).astype(np.float32)
-
-    def sampler(self, scene: Scene, frame_index: int, *, spp: int = 1, seed: int = 0, channels=frozenset(),
-                resolution=None):
-        """An adaptive-sampling service starting with ``spp`` samples in every pixel."""
-        return StreamSampler(self, scene, frame_index, spp=spp, seed=seed, channels=channels, resolution=resolution,
-                             new_state=PixelState, owner=OWNER)
