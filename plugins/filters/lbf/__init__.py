@@ -12,14 +12,22 @@ PARAMS = {
 }
 
 
-def train_lbf(seed: int = 0, output=None, quick: bool = False):
-    """Train LBF and write a weights file (``denoise-bench train lbf``).
+#: options of ``denoise-bench train lbf -o KEY=VALUE``
+TRAIN_OPTIONS = ("real",)
 
-    See :func:`plugins.filters.lbf.train.train`.
+
+def train_lbf(seed: int = 0, output=None, quick: bool = False, **options):
+    """Train LBF and write a weights file (``denoise-bench train lbf [-o real=false]``).
+
+    ``real`` (default true): include the real scenes of the shipped recipe; false trains on
+    procedural data alone. See :func:`plugins.filters.lbf.train.train`.
     """
+    unknown = sorted(set(options) - set(TRAIN_OPTIONS))
+    if unknown:
+        raise ValueError(f"lbf trainer: unknown option(s) {unknown}; it takes {list(TRAIN_OPTIONS)}")
     from .train import train as _train
 
-    return _train(seed=seed, output=output, quick=quick)
+    return _train(seed=seed, output=output, quick=quick, **options)
 
 
 @hookimpl

@@ -9,11 +9,17 @@ The network is trained through the differentiable filter of :mod:`.torch_ref` on
   them without their variance channel (so the spatial estimate is exercised), and
 * when the ``pathtracer`` renderer is registered, randomized variants of the built-in mesh
   scenes (:data:`MESH_SCENES`): moved camera and field of view, tinted materials, scaled
-  emitters and sun, moved sun; 1-spp inputs against 128-spp references at 80x60.
+  emitters and sun, moved sun; 1-spp inputs against 128-spp references at 80x60, and
+* camera crops of the third-party Mitsuba scenes :data:`.real_scenes.TRAIN_SCENES` (classroom,
+  living room; tier ``real``), path traced (:mod:`.real_scenes`); without them the full recipe
+  stops with :class:`.real_scenes.RealScenesMissing` (exit status 2 from ``denoise-bench``)
+  unless ``real=False`` asks for procedural data alone, which the weights' metadata records.
 
 Half of the frames carry the renderer's ``visibility`` channel, half use the stand-in, so the
 weights work with either. Loss: relative MSE ``(F - R)^2 / (R^2 + 0.01)``. A held-out set of
-variants (other seeds) selects the best step and is reported in the weights.
+variants (other seeds and cameras, the same scenes) selects the best step; the held-out scenes
+:data:`.real_scenes.HELDOUT_SCENES` (sponza) take no part in training or selection and measure
+generalisation. Every split's scores are reported in the weights.
 """
 
 from __future__ import annotations
@@ -32,6 +38,7 @@ import torch
 from harness import CHANNELS, CameraPath, Scene, load_plugins
 
 from . import kernels as K
+from . import real_scenes as RS
 from . import torch_ref as TR
 from .weights import (
     DEFAULT_WEIGHTS,
@@ -66,10 +73,15 @@ class TrainConfig:
     eval_every: int
     lr: float = 0.01
     radius: int = 5
+    #: variants per real training scene in the training / selection sets, and per held-out scene
+    real_train: int = 0
+    real_val: int = 0
+    real_test: int = 0
 
 
 FULL = TrainConfig(n_train=40, n_val=10, resolutions=((64, 48), (96, 72)),
-                   mesh_train=12, mesh_val=4, steps=300, batch=4, eval_every=25)
+                   mesh_train=12, mesh_val=4, steps=300, batch=4, eval_every=25,
+                   real_train=8, real_val=2, real_test=4)
 QUICK = TrainConfig(n_train=10, n_val=4, resolutions=((48, 36), (64, 48)),
                     mesh_train=0, mesh_val=0, steps=40, batch=2, eval_every=10)
 #: built-in mesh scenes whose randomized variants (camera, materials, lights) join the training
@@ -203,6 +215,16 @@ def make_dataset(seed: int, count: int, config: TrainConfig, mesh_count: int = 0
         mesh_count = 0
     mesh_rng = np.random.default_rng(seed + 7)
     renders += [render_mesh_variant(reg, _mesh_variant(mesh_rng, k)) for k in range(mesh_count)]
+    return with_features(renders)
+
+
+def make_real_dataset(reg, scenes: dict, seed: int, per_scene: int) -> list[dict]:
+    """``per_scene`` path-traced camera crops of each loaded real scene, with their features."""
+    return with_features(RS.dataset(reg, scenes, seed, per_scene))
+
+
+def with_features(renders: list[dict[str, np.ndarray]]) -> list[dict]:
+    """Training samples: the arrays as tensors, the filter's variance, signals and features."""
     out = []
     for data in renders:
         t = {k: torch.from_numpy(a) for k, a in data.items()}
@@ -271,12 +293,18 @@ def _loss(net, sample, radius):
     return relmse(out, sample["ref"])
 
 
-def _evaluate(net, dataset, radius) -> float:
+def _losses(net, dataset, radius) -> list[float]:
     with torch.no_grad():
-        return float(np.mean([float(_loss(net, s, radius)) for s in dataset]))
+        return [float(_loss(net, s, radius)) for s in dataset]
 
 
-def fit(seed: int = 0, config: TrainConfig = FULL) -> tuple[LBFWeights, dict]:
+def _scores(noisy: list[float], initial: list[float], final: list[float], part: slice) -> dict:
+    """Mean relMSE of the noisy input, the initial and the final network over ``part`` of a set."""
+    return {"frames": len(noisy[part]), "noisy": float(np.mean(noisy[part])),
+            "initial": float(np.mean(initial[part])), "final": float(np.mean(final[part]))}
+
+
+def fit(seed: int = 0, config: TrainConfig = FULL, real: bool = True) -> tuple[LBFWeights, dict]:
     """Render the data, train, and return the best weights (by held-out relMSE) and a report.
 
     Runs PyTorch on one thread (faster for these small tensors, and the result does not depend
@@ -287,29 +315,79 @@ def fit(seed: int = 0, config: TrainConfig = FULL) -> tuple[LBFWeights, dict]:
     seed : int
         Seeds the data (variants and noise), the initialisation and the batch order.
     config : TrainConfig
+    real : bool
+        Include the real scenes the config asks for (False: procedural data only).
 
     Returns
     -------
     weights : LBFWeights
     report : dict
-        ``heldout_relmse`` (noisy input, initial and final network), ``history`` of held-out
-        relMSE, ``training_data_hash``, timings.
+        ``heldout_relmse`` (noisy input, initial and final network on the selection set),
+        ``splits`` (the same per split: procedural, real, held-out scenes), ``history`` of
+        held-out relMSE, ``training_data_hash``, timings.
+
+    Raises
+    ------
+    RealScenesMissing
+        When ``real`` and the config asks for real scenes that cannot be loaded (before any
+        rendering).
     """
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        return _fit(seed, config)
+        return _fit(seed, config, real)
     finally:
         torch.set_num_threads(threads)
 
 
-def _fit(seed: int, config: TrainConfig) -> tuple[LBFWeights, dict]:
+def _real_data(reg, seed: int, config: TrainConfig, real: bool) -> tuple[list, list, list, dict]:
+    """The real scenes' training, selection and held-out-scene samples and their description."""
+    counts = (config.real_train, config.real_val, config.real_test)
+    if not real or not any(counts):
+        reason = "real=False" if real is False and any(counts) else "the quick recipe"
+        return [], [], [], {"used": False, "reason": f"{reason}: procedural data only"}
+    train_scenes = RS.load(reg, RS.TRAIN_SCENES)
+    test_scenes = RS.load(reg, RS.HELDOUT_SCENES) if config.real_test else {}
+    info = {
+        "used": True,
+        "train": list(train_scenes),
+        "heldout": list(test_scenes),
+        "scene_sha256": {n: sc.content_hash() for n, sc in {**train_scenes, **test_scenes}.items()},
+        "renderer": "pathtracer",
+        "resolutions": [list(r) for r in RS.RESOLUTIONS],
+        "reference_spp": RS.REFERENCE_SPP,
+        "variants_per_scene": {"train": counts[0], "selection": counts[1], "heldout": counts[2]},
+    }
+    return (make_real_dataset(reg, train_scenes, seed * 1000 + 3, config.real_train),
+            make_real_dataset(reg, train_scenes, seed * 1000 + 4, config.real_val),
+            make_real_dataset(reg, test_scenes, seed * 1000 + 5, config.real_test), info)
+
+
+def _description(real_info: dict) -> str:
+    text = ("randomized variants of the synthetic renderer's procedural scene and of the built-in "
+            "mesh scenes (no benchmark scene or camera)")
+    if real_info["used"]:
+        text += (f"; camera crops of the real scenes {', '.join(real_info['train'])} path traced "
+                 f"(held-out scenes, never trained on: {', '.join(real_info['heldout']) or 'none'})")
+    else:
+        text += f"; no real scene ({real_info['reason']})"
+    return text
+
+
+def _fit(seed: int, config: TrainConfig, real: bool) -> tuple[LBFWeights, dict]:
     t_start = time.perf_counter()
     cpu_start = time.process_time()
-    train_set = make_dataset(seed * 1000 + 1, config.n_train, config, config.mesh_train)
-    val_set = make_dataset(seed * 1000 + 2, config.n_val, config, config.mesh_val)
+    real_train, real_val, real_test, real_info = _real_data(load_plugins(), seed, config, real)
+    proc_train = make_dataset(seed * 1000 + 1, config.n_train, config, config.mesh_train)
+    proc_val = make_dataset(seed * 1000 + 2, config.n_val, config, config.mesh_val)
+    train_set = proc_train + real_train
+    val_set = proc_val + real_val
+    parts = {"procedural": slice(0, len(proc_val)), "real": slice(len(proc_val), len(val_set))}
     t_data = time.perf_counter() - t_start
     cpu_data = time.process_time() - cpu_start
+    log.info("lbf training data: %d training frames (%d real), %d selection (%d real), %d of held-out "
+             "scenes; %.0f s", len(train_set), len(real_train), len(val_set), len(real_val),
+             len(real_test), t_data)
     feats = torch.cat([s["feat"].reshape(-1, K.N_FEATURES) for s in train_set]).double()
     mean = feats.mean(0).numpy().astype(np.float32)
     std = feats.std(0).numpy().astype(np.float32)
@@ -318,10 +396,10 @@ def _fit(seed: int, config: TrainConfig) -> tuple[LBFWeights, dict]:
     net = _Net(mean, std, gen)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     order = np.random.default_rng(seed)
-    noisy = float(np.mean([float(relmse(s["color"], s["ref"])) for s in val_set]))
-    initial = _evaluate(net, val_set, config.radius)
-    best = (initial, 0, {k: v.clone() for k, v in net.state_dict().items()})
-    history = [(0, initial)]
+    noisy = [float(relmse(s["color"], s["ref"])) for s in val_set + real_test]
+    initial = _losses(net, val_set + real_test, config.radius)
+    best = (float(np.mean(initial[:len(val_set)])), 0, {k: v.clone() for k, v in net.state_dict().items()})
+    history = [(0, best[0])]
     for step in range(1, config.steps + 1):
         opt.zero_grad()
         idx = order.choice(len(train_set), size=config.batch, replace=False)
@@ -329,16 +407,22 @@ def _fit(seed: int, config: TrainConfig) -> tuple[LBFWeights, dict]:
         loss.backward()
         opt.step()
         if step % config.eval_every == 0 or step == config.steps:
-            val = _evaluate(net, val_set, config.radius)
+            val = float(np.mean(_losses(net, val_set, config.radius)))
             history.append((step, val))
             log.info("lbf training step %d: train relMSE %.5f, held-out %.5f",
                      step, loss.item(), val)
             if val < best[0]:
                 best = (val, step, {k: v.clone() for k, v in net.state_dict().items()})
     net.load_state_dict(best[2])
+    final = _losses(net, val_set + real_test, config.radius)
+    selection = slice(0, len(val_set))
+    splits = {name: _scores(noisy, initial, final, part) for name, part in parts.items() if part.stop > part.start}
+    if real_test:
+        splits["heldout_scenes"] = _scores(noisy, initial, final, slice(len(val_set), len(noisy)))
     report = {
-        "training_data_hash": data_hash([train_set, val_set]),
-        "heldout_relmse": {"noisy": noisy, "initial": initial, "final": best[0]},
+        "training_data_hash": data_hash([train_set, val_set, real_test]),
+        "heldout_relmse": {k: v for k, v in _scores(noisy, initial, final, selection).items() if k != "frames"},
+        "splits": splits,
         "best_step": best[1],
         "history": history,
         "data_seconds": t_data,
@@ -351,10 +435,11 @@ def _fit(seed: int, config: TrainConfig) -> tuple[LBFWeights, dict]:
         "radius": config.radius,
         "config": {k: (list(map(list, v)) if k == "resolutions" else v)
                    for k, v in config.__dict__.items()},
-        "training_data": "randomized variants of the synthetic renderer's procedural scene "
-                         "(no benchmark scene)",
+        "training_data": _description(real_info),
+        "real_scenes": real_info,
         "training_data_hash": report["training_data_hash"],
         "heldout_relmse": report["heldout_relmse"],
+        "split_relmse": splits,
         "best_step": best[1],
         "heldout_history": [[s, round(v, 6)] for s, v in history],
         "data_cpu_seconds": round(report["data_cpu_seconds"], 1),
@@ -366,7 +451,7 @@ def _fit(seed: int, config: TrainConfig) -> tuple[LBFWeights, dict]:
     return net.to_weights(std, meta), report
 
 
-def train(seed: int = 0, output: str | Path | None = None, quick: bool = False) -> Path:
+def train(seed: int = 0, output: str | Path | None = None, quick: bool = False, real: bool = True) -> Path:
     """Train LBF and write its weights file (the ``denoise-bench train lbf`` entry point).
 
     Parameters
@@ -375,18 +460,28 @@ def train(seed: int = 0, output: str | Path | None = None, quick: bool = False) 
         Seed of data, initialisation and batch order; seed 0 reproduces the shipped weights (on
         the same number of threads).
     output : str or Path, optional
-        Where to write the ``.npz``; default: the shipped ``weights/lbf_v1.npz`` (the log says
-        whether the new file is identical to the one it replaces).
+        Where to write the ``.npz``; default: the shipped weights file (:data:`DEFAULT_WEIGHTS`;
+        the log says whether the new file is identical to the one it replaces).
     quick : bool
-        A small run (< 1 minute) for tests and smoke checks.
+        A small run (< 1 minute) for tests and smoke checks, on procedural data only.
+    real : bool
+        ``denoise-bench train lbf -o real=false``: leave out the real scenes (the weights'
+        metadata says so); by default the full recipe needs them and stops where they are absent.
 
     Returns
     -------
     Path
         The weights file written.
+
+    Raises
+    ------
+    RealScenesMissing
+        The real scenes are absent (a ``FileNotFoundError``: one line, exit status 2 from the CLI).
     """
+    if not isinstance(real, bool):
+        raise ValueError(f"lbf trainer: option real must be true or false, got {real!r}")
     config = QUICK if quick else FULL
-    weights, report = fit(seed, config)
+    weights, report = fit(seed, config, real)
     weights.meta["quick"] = bool(quick)
     target = Path(output) if output is not None else DEFAULT_WEIGHTS
     previous = _digest(target)
