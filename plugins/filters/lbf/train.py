@@ -16,10 +16,11 @@ The network is trained through the differentiable filter of :mod:`.torch_ref` on
   unless ``real=False`` asks for procedural data alone, which the weights' metadata records.
 
 Half of the frames carry the renderer's ``visibility`` channel, half use the stand-in, so the
-weights work with either. Loss: relative MSE ``(F - R)^2 / (R^2 + 0.01)``. A held-out set of
-variants (other seeds and cameras, the same scenes) selects the best step; the held-out scenes
-:data:`.real_scenes.HELDOUT_SCENES` (sponza) take no part in training or selection and measure
-generalisation. Every split's scores are reported in the weights.
+weights work with either. Loss: relative MSE ``(F - R)^2 / (R^2 + 0.01)``, the real frames'
+scaled so that the two groups weigh alike (:func:`_group_scales`). A held-out set of variants
+(other seeds and cameras, the same scenes) selects the best step (:func:`_selection_score`);
+the held-out scenes :data:`.real_scenes.HELDOUT_SCENES` (sponza) take no part in training or
+selection and measure generalisation. Every split's scores are reported in the weights.
 """
 
 from __future__ import annotations
@@ -298,6 +299,29 @@ def _losses(net, dataset, radius) -> list[float]:
         return [float(_loss(net, s, radius)) for s in dataset]
 
 
+def _group_scales(proc_train: list[dict], real_train: list[dict]) -> dict[str, float]:
+    """Loss factor per group: 1 for procedural frames, mean procedural / mean real input relMSE for real.
+
+    The real frames' 1-spp inputs have about ten times the relMSE of the procedural ones (dark
+    interiors, sun patches), so unscaled they would dominate the loss and the step selection;
+    scaled, each group counts by the share of its input error left. Without real frames the
+    training is that of procedural data alone, unchanged.
+    """
+    scales = {"procedural": 1.0}
+    if real_train:
+        noisy = {name: float(np.mean([float(relmse(s["color"], s["ref"])) for s in group]))
+                 for name, group in (("procedural", proc_train), ("real", real_train))}
+        scales["real"] = noisy["procedural"] / noisy["real"]
+    return scales
+
+
+def _selection_score(losses: list[float], parts: dict[str, slice], scales: dict[str, float]) -> float:
+    """Mean over the groups of the selection set of their scaled mean relMSE (lower is better)."""
+    means = [float(np.mean([scales[name] * v for v in losses[part]]))
+             for name, part in parts.items() if part.stop > part.start]
+    return float(np.mean(means))
+
+
 def _scores(noisy: list[float], initial: list[float], final: list[float], part: slice) -> dict:
     """Mean relMSE of the noisy input, the initial and the final network over ``part`` of a set."""
     return {"frames": len(noisy[part]), "noisy": float(np.mean(noisy[part])),
@@ -323,8 +347,8 @@ def fit(seed: int = 0, config: TrainConfig = FULL, real: bool = True) -> tuple[L
     weights : LBFWeights
     report : dict
         ``heldout_relmse`` (noisy input, initial and final network on the selection set),
-        ``splits`` (the same per split: procedural, real, held-out scenes), ``history`` of
-        held-out relMSE, ``training_data_hash``, timings.
+        ``splits`` (the same per split: procedural, real, held-out scenes), ``group_scales``,
+        ``history`` of the selection score, ``training_data_hash``, timings.
 
     Raises
     ------
@@ -396,20 +420,24 @@ def _fit(seed: int, config: TrainConfig, real: bool) -> tuple[LBFWeights, dict]:
     net = _Net(mean, std, gen)
     opt = torch.optim.Adam(net.parameters(), lr=config.lr)
     order = np.random.default_rng(seed)
+    scales = _group_scales(proc_train, real_train)
+    for group, name in ((proc_train, "procedural"), (real_train, "real")):
+        for sample in group:
+            sample["scale"] = scales[name]
     noisy = [float(relmse(s["color"], s["ref"])) for s in val_set + real_test]
     initial = _losses(net, val_set + real_test, config.radius)
-    best = (float(np.mean(initial[:len(val_set)])), 0, {k: v.clone() for k, v in net.state_dict().items()})
+    best = (_selection_score(initial, parts, scales), 0, {k: v.clone() for k, v in net.state_dict().items()})
     history = [(0, best[0])]
     for step in range(1, config.steps + 1):
         opt.zero_grad()
         idx = order.choice(len(train_set), size=config.batch, replace=False)
-        loss = sum(_loss(net, train_set[i], config.radius) for i in idx) / config.batch
+        loss = sum(train_set[i]["scale"] * _loss(net, train_set[i], config.radius) for i in idx) / config.batch
         loss.backward()
         opt.step()
         if step % config.eval_every == 0 or step == config.steps:
-            val = float(np.mean(_losses(net, val_set, config.radius)))
+            val = _selection_score(_losses(net, val_set, config.radius), parts, scales)
             history.append((step, val))
-            log.info("lbf training step %d: train relMSE %.5f, held-out %.5f",
+            log.info("lbf training step %d: train loss %.5f, selection score %.5f",
                      step, loss.item(), val)
             if val < best[0]:
                 best = (val, step, {k: v.clone() for k, v in net.state_dict().items()})
@@ -424,6 +452,7 @@ def _fit(seed: int, config: TrainConfig, real: bool) -> tuple[LBFWeights, dict]:
         "heldout_relmse": {k: v for k, v in _scores(noisy, initial, final, selection).items() if k != "frames"},
         "splits": splits,
         "best_step": best[1],
+        "group_scales": scales,
         "history": history,
         "data_seconds": t_data,
         "data_cpu_seconds": cpu_data,
@@ -440,8 +469,9 @@ def _fit(seed: int, config: TrainConfig, real: bool) -> tuple[LBFWeights, dict]:
         "training_data_hash": report["training_data_hash"],
         "heldout_relmse": report["heldout_relmse"],
         "split_relmse": splits,
+        "loss_scales": scales,
         "best_step": best[1],
-        "heldout_history": [[s, round(v, 6)] for s, v in history],
+        "selection_history": [[s, round(v, 6)] for s, v in history],
         "data_cpu_seconds": round(report["data_cpu_seconds"], 1),
         "visibility": "mixed: 50% visibility channel, 50% coverage stand-in",
         "torch_version": torch.__version__,
