@@ -4,7 +4,7 @@ from harness import FilterSpec, Param, hookimpl
 
 from .denoiser import LBFFilter
 
-VERSION = "1.0"
+VERSION = "2.0"
 PARAMS = {
     "radius": Param(5, min=0, max=64, doc="filter window radius in pixels (weights trained with 5)"),
     "weights": Param(None, type="str", doc="weights file; null for the shipped weights"),

@@ -24,7 +24,7 @@ class LBFFilter:
         Filter window radius in pixels (window ``2 radius + 1`` square). The shipped weights were
         trained with radius 5.
     weights : str, optional
-        Path of a weights file; None uses the shipped ``weights/lbf_v1.npz``.
+        Path of a weights file; None uses the shipped ``weights/lbf_v2.npz``.
     visibility : {"auto", "standin"}
         Where the visibility feature comes from (see :func:`.features.gather_inputs`).
 

@@ -81,7 +81,7 @@ class TrainConfig:
 
 
 FULL = TrainConfig(n_train=40, n_val=10, resolutions=((64, 48), (96, 72)),
-                   mesh_train=12, mesh_val=4, steps=300, batch=4, eval_every=25,
+                   mesh_train=12, mesh_val=4, steps=500, batch=4, eval_every=25,
                    real_train=8, real_val=2, real_test=4)
 QUICK = TrainConfig(n_train=10, n_val=4, resolutions=((48, 36), (64, 48)),
                     mesh_train=0, mesh_val=0, steps=40, batch=2, eval_every=10)

@@ -33,8 +33,8 @@ SHAPES = {
     "mean": (K.N_FEATURES,),
     "std": (K.N_FEATURES,),
 }
-#: the shipped weights
-DEFAULT_WEIGHTS = Path(__file__).with_name("weights") / "lbf_v1.npz"
+#: the shipped weights (v2: procedural and real training data; the file format is FORMAT_VERSION 1)
+DEFAULT_WEIGHTS = Path(__file__).with_name("weights") / "lbf_v2.npz"
 #: features whose training deviation is below this are not scaled (e.g. 1/spp at constant spp)
 STD_FLOOR = 1e-6
 
