@@ -157,6 +157,36 @@ def test_cli_options_make_the_dataset_and_train(tiny, tmp_path, capsys):
     assert "--output" in capsys.readouterr().err and not (tmp_path / "none").exists()
 
 
+@pytest.mark.slow
+def test_train_without_options_runs_the_shipped_recipe(tmp_path, monkeypatch, caplog):
+    from plugins.filters.aa_rnn import weights as W
+
+    data = tmp_path / "cache" / "data"
+    recipe = {"data": str(data), "train_sequences": 2, "epochs": 2, "val_sequences": 1, "eval_every": 1, "batch": 2,
+              "crop": 8, "executor": "inline"}
+    monkeypatch.setitem(W.SHIPPED, W.DEFAULT_LAYERS, dict(W.SHIPPED[W.DEFAULT_LAYERS], recipe=recipe,
+                                                          dataset=TINY.to_json(), seed=0))
+    out = tmp_path / "w.npz"
+    caplog.set_level("INFO")
+    assert main(["train", "aa_rnn", "--output", str(out)]) == 0
+    manifest = DS.read_manifest(data)  # the dataset made first, with the recorded settings
+    assert manifest["complete"] and manifest["config"] == TINY.to_json()
+    meta = load_weights(out)[1]
+    assert meta["recipe"] == "dataset" and meta["seed"] == 0 and meta["epochs_run"] == 2
+    assert meta["config"]["train_sequences"] == 2 and meta["config"]["val_sequences"] == 1
+    # the checkpoint lies beside the dataset, not beside the (shipped) weights
+    assert (data.parent / "w.npz.ckpt").is_file() and not checkpoint_path(out).exists()
+    assert "differs from the shipped weights" in caplog.text
+    # the same weights as the options spelled out
+    again = tmp_path / "again.npz"
+    assert main(["train", "aa_rnn", "--output", str(again)] + [a for k, v in recipe.items()
+                                                                for a in ("-o", f"{k}={v}")]) == 0
+    assert load_weights(again)[1]["arrays_sha256"] == meta["arrays_sha256"]
+    # another seed, or a quick run, would replace the shipped file: refused without --output
+    assert main(["train", "aa_rnn", "--seed", "1"]) == 2
+    assert main(["train", "aa_rnn", "--quick"]) == 2
+
+
 def test_option_without_equals_is_a_usage_error():
     with pytest.raises(SystemExit) as exc:
         main(["train", "aa_rnn", "-o", "nokey"])
