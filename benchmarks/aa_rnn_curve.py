@@ -43,7 +43,7 @@ from harness import Frame, FrameMeta, encode_srgb, load_plugins  # noqa: E402
 NAME = re.compile(r"^n(\d+)-s(\d+)(?:-e(\d+))?\.npz$")
 #: scored once: the aliased input, TAA's defaults and ``aa_rnn`` with its shipped weights
 BASELINES = ("noaa", "taa", "aa_rnn")
-LABELS = {"noaa": "`noaa`", "taa": "`taa`", "aa_rnn": "`aa_rnn`, shipped weights"}
+LABELS = {"noaa": "`noaa`", "taa": "`taa`", "aa_rnn": "`aa_rnn`, the weights shipped when scored"}
 
 
 def train(args) -> None:
