@@ -67,9 +67,8 @@ def open_capture(path) -> Scene | None:
                                    f"({source_label(source.channel)})")
             size = _size(file)
             if size != (width, height):
-                raise CaptureError(
-                    f"{file}: {size[0]}x{size[1]} pixels, but the colour of frame 0 is {width}x{height}"
-                )
+                raise CaptureError(f"{capture.where(source.channel)}: {file}: {size[0]}x{size[1]} pixels, but the "
+                                   f"colour of frame 0 is {width}x{height} ({source_label(source.channel)})")
             files.append(file)
     _check_first_frame(capture, reader, sources, reference)
     digest = hashlib.sha256()
