@@ -165,6 +165,25 @@ def test_colour_is_the_mean_of_the_halves(registry, tmp_path):
     assert frame.channels == {"color", "variance"}
 
 
+def test_a_preset_colour_gives_way_to_the_halves_and_json_sidecars_name_their_line(registry, tmp_path):
+    """With the blender preset, whose colour is ViewLayer.Combined, halves and no ``color`` in the
+    sidecar: the colour is the halves' mean (the preset's layer is neither read nor checked)."""
+    a, b = _halves()
+    write_channels(tmp_path / "0001.exr", {**rgb("ViewLayer.Combined", a * 5), **rgb("half_a", a), **rgb("half_b", b)})
+    (tmp_path / "capture.toml").write_text(
+        'preset = "blender"\nframes = 1\n[channels]\ncolor_halves = ["half_a", "half_b"]\n')
+    _, frame = serve(registry, tmp_path)
+    assert frame["color"].tobytes() == mean_of_halves(a, b).tobytes()
+    json_folder = tmp_path / "json"
+    (json_folder / "frames").mkdir(parents=True)
+    write_channels(json_folder / "frames" / "0000.exr", _planes(a, b, **rgb("color", a)))
+    (json_folder / "capture.json").write_text(
+        '{\n  "frames": 1,\n  "file": "frames/{frame:04d}.exr",\n  "channels": {\n    "color": "color",\n'
+        '    "color_halves": ["half_a", "half_b"]\n  }\n}\n')
+    with pytest.raises(CaptureError, match=r"capture\.json:6: frame 0: the colour is not the mean"):
+        open_capture(json_folder)
+
+
 def test_halves_follow_the_colour_conventions(registry, tmp_path):
     """ACEScg halves stored bottom row first serve the same colour and variance as the same halves
     converted to linear sRGB and stored top row first (the variance is taken after conversion)."""

@@ -17,6 +17,9 @@ stays unbiased where the true variance is constant over the pixels it weights; s
 from __future__ import annotations
 
 import numpy as np
+from numba import njit, prange
+
+from harness import kernels
 
 #: radius of the averaging window (5x5)
 RADIUS = 2
@@ -74,80 +77,89 @@ def half_variance(a: np.ndarray, b: np.ndarray, guides: dict | None = None) -> n
     a, b : ndarray (H, W, 3)
         The two half-buffers (linear sRGB).
     guides : dict, optional
-        ``normal`` (H, W, 3), ``albedo`` (H, W, 3), ``depth`` (H, W), whichever the capture has;
-        without any the window is a plain 5x5 box.
+        ``normal`` (H, W, 3), ``albedo`` (H, W, 3), ``depth`` (H, W), whichever the capture has
+        (None or a missing key: not used); without any the window is a plain 5x5 box.
 
     Returns
     -------
     ndarray (H, W, 3) float32
         Per pixel, the weighted mean of the finite pair estimates in the 5x5 window (clipped to the
         image) with weights ``exp(-(1 - n.n')/0.8 - |albedo - albedo'|^2/0.1^2 - ((z - z')/z)^2/0.05^2)``
-        (1 at the pixel itself); float64 sums, at most float32 max. A pixel whose own estimate is not
-        finite (non-finite halves) keeps it and is left out of its neighbours' windows.
+        (1 at the pixel itself; 0 where a guide is not finite or one pixel is background, depth
+        not finite, and the other not); float64 sums, at most float32 max. A pixel whose own
+        estimate is not finite (non-finite halves) keeps it and is left out of its neighbours'
+        windows.
     """
     pair = pair_variance(a, b)
     height, width = pair.shape[:2]
     finite = np.isfinite(pair).all(axis=-1)
-    keys = _guide_keys(guides or {}, (height, width))
-    total = np.zeros_like(pair)
-    weights = np.zeros((height, width))
-    for dy in range(-RADIUS, RADIUS + 1):
-        for dx in range(-RADIUS, RADIUS + 1):
-            here, there = _overlap(dy, height), _overlap(dx, width)
-            target = (slice(*here[0]), slice(*there[0]))  # pixels whose window holds the neighbour
-            source = (slice(*here[1]), slice(*there[1]))  # the neighbours
-            weight = finite[source].astype(np.float64)
-            if dy or dx:
-                weight = weight * _guide_weight(keys, target, source)
-            total[target] += weight[..., None] * np.where(finite[source][..., None], pair[source], 0.0)
-            weights[target] += weight
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = total / np.where(weights > 0.0, weights, 1.0)[..., None]
-    out = np.where(finite[..., None], np.minimum(out, FLOAT32_MAX), pair)
-    return out.astype(np.float32)
+    planes = []
+    for name, components in (("normal", 3), ("albedo", 3), ("depth", 1)):
+        value = (guides or {}).get(name)
+        use = value is not None and np.shape(value)[:2] == (height, width)
+        planes.append(use)
+        planes.append(np.ascontiguousarray(value, np.float32).reshape(height, width, components) if use
+                      else np.zeros((1, 1, components), np.float32))
+    out = np.empty((height, width, 3), np.float32)
+    with kernels.serial_below(height * width):
+        _window_mean(pair, finite, *planes, RADIUS, out)
+    return out
 
 
-def _overlap(shift: int, size: int) -> tuple:
-    """Index ranges (target, source) of pixels ``i`` and their neighbours ``i + shift`` inside ``size``."""
-    if shift >= 0:
-        return (0, max(size - shift, 0)), (shift, max(size, shift))
-    return (-shift, max(size, -shift)), (0, max(size + shift, 0))
+@njit(cache=True, inline="always")
+def _distance(y: int, x: int, yy: int, xx: int, use_normal, normal, use_albedo, albedo, use_depth, depth) -> float:
+    """The exponent of a neighbour's weight (``inf``: weight 0)."""
+    d = 0.0
+    if use_normal:
+        dot = 0.0
+        for c in range(3):
+            dot += np.float64(normal[y, x, c]) * np.float64(normal[yy, xx, c])
+        t = 1.0 - dot
+        if not np.isfinite(t):
+            return np.inf
+        if t > 0.0:
+            d += t / SIGMA_NORMAL
+    if use_albedo:
+        e = 0.0
+        for c in range(3):
+            diff = np.float64(albedo[y, x, c]) - np.float64(albedo[yy, xx, c])
+            e += diff * diff
+        if not np.isfinite(e):
+            return np.inf
+        d += e / (SIGMA_ALBEDO * SIGMA_ALBEDO)
+    if use_depth:
+        z0, z1 = np.float64(depth[y, x, 0]), np.float64(depth[yy, xx, 0])
+        if np.isnan(z0) or np.isnan(z1) or np.isfinite(z0) != np.isfinite(z1):
+            return np.inf
+        if np.isfinite(z0):
+            relative = (z1 - z0) / max(abs(z0), 1e-30)
+            d += relative * relative / (SIGMA_DEPTH * SIGMA_DEPTH)
+    return d
 
 
-def _guide_keys(guides: dict, shape: tuple) -> dict:
-    """Sanitised guide planes (float64): non-finite normals and albedos become NaN flags, depth keeps
-    background (not finite) apart."""
-    keys = {}
-    for name in ("normal", "albedo"):
-        if guides.get(name) is not None:
-            value = np.asarray(guides[name], np.float64)
-            if value.shape[:2] == shape:
-                keys[name] = np.where(np.isfinite(value).all(axis=-1, keepdims=True), value, np.nan)
-    if guides.get("depth") is not None:
-        depth = np.asarray(guides["depth"], np.float64)
-        if depth.shape[:2] == shape:
-            keys["depth"] = depth.reshape(shape)
-    return keys
-
-
-def _guide_weight(keys: dict, target: tuple, source: tuple) -> np.ndarray:
-    """exp(-distance) between the guides of the pixels ``target`` and their neighbours ``source``;
-    0 where a guide is not finite, or one of the two pixels is background and the other not."""
-    distance = 0.0
-    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-        if "normal" in keys:
-            n = keys["normal"]
-            dot = np.sum(n[target] * n[source], axis=-1)
-            distance = distance + np.maximum(1.0 - dot, 0.0) / SIGMA_NORMAL
-        if "albedo" in keys:
-            alb = keys["albedo"]
-            distance = distance + np.sum((alb[target] - alb[source]) ** 2, axis=-1) / SIGMA_ALBEDO**2
-        if "depth" in keys:
-            z0, z1 = keys["depth"][target], keys["depth"][source]
-            both = np.isfinite(z0) & np.isfinite(z1)
-            relative = np.where(both, (z1 - z0) / np.maximum(np.abs(z0), 1e-30), 0.0)
-            apart = np.where(np.isfinite(z0) == np.isfinite(z1), relative**2 / SIGMA_DEPTH**2, np.inf)
-            apart = np.where(np.isnan(z0) | np.isnan(z1), np.inf, apart)
-            distance = distance + apart
-        weight = np.exp(-np.asarray(distance, np.float64))
-    return np.where(np.isnan(weight), 0.0, weight)
+@njit(parallel=True, cache=True)
+def _window_mean(pair, finite, use_normal, normal, use_albedo, albedo, use_depth, depth, radius, out):
+    """``out[y, x]``: the weighted mean of the finite ``pair`` estimates in the window (see :func:`half_variance`)."""
+    height, width = finite.shape
+    for y in prange(height):
+        for x in range(width):
+            if not finite[y, x]:
+                for c in range(3):
+                    out[y, x, c] = pair[y, x, c]
+                continue
+            s0 = s1 = s2 = total = 0.0
+            for yy in range(max(y - radius, 0), min(y + radius + 1, height)):
+                for xx in range(max(x - radius, 0), min(x + radius + 1, width)):
+                    if not finite[yy, xx]:
+                        continue
+                    weight = 1.0
+                    if yy != y or xx != x:
+                        weight = np.exp(-_distance(y, x, yy, xx, use_normal, normal, use_albedo, albedo,
+                                                   use_depth, depth))
+                    s0 += weight * pair[yy, xx, 0]
+                    s1 += weight * pair[yy, xx, 1]
+                    s2 += weight * pair[yy, xx, 2]
+                    total += weight
+            out[y, x, 0] = min(s0 / total, FLOAT32_MAX)  # total >= 1: the pixel itself
+            out[y, x, 1] = min(s1 / total, FLOAT32_MAX)
+            out[y, x, 2] = min(s2 / total, FLOAT32_MAX)

@@ -51,11 +51,11 @@ def open_capture(path) -> Scene | None:
     if reference is not None and not reference.required and not capture.path(reference, 0).is_file():
         reference = None
     halves = capture.color_halves or ()
-    for half in halves:
-        if not capture.path(half, 0).is_file():
-            raise CaptureError(f"{capture.where(half.channel)}: {capture.path(half, 0)}: missing file for frame 0 "
-                               f"({source_label(half.channel)})")
-    width, height = read_size(capture.path(sources.get("color") or halves[0], 0))
+    sized = sources.get("color") or halves[0]  # the colour, or its first half-buffer
+    if not capture.path(sized, 0).is_file():
+        raise CaptureError(f"{capture.where(sized.channel)}: {capture.path(sized, 0)}: missing file for frame 0 "
+                           f"({source_label(sized.channel)})")
+    width, height = read_size(capture.path(sized, 0))
     files = []
     for t in range(capture.frames):
         for source in [*sources.values(), *halves, *([reference] if reference else [])]:
