@@ -209,6 +209,28 @@ def test_the_guides_column_names_camera_motion(registry):
     assert registry.filters["eaw"].guides_used(CAPTURE | {"depth"}, metas) == "albedo,depth,normal; without position"
 
 
+def test_a_run_on_a_capture_without_motion_names_camera_motion(registry, still_atrium, tmp_path):
+    """A capture with depth and its camera matrices, and one without the matrices, through
+    ``run_benchmark``: the rows say which mode SVGF ran."""
+    from harness import write_capture
+    from harness.benchmark import run_benchmark
+
+    tracer = registry.renderers["pathtracer"].factory()
+    frames = [tracer.render(still_atrium, t, channels={"albedo", "normal", "depth"}, resolution=(32, 24))
+              for t in range(3)]
+    refs = [f["color"] for f in frames]
+    write_capture(tmp_path / "camera", frames, refs, name="camera", spp=1)
+    write_capture(tmp_path / "blind", [f.with_meta(view_proj=None, prev_view_proj=None) for f in frames], refs,
+                  name="blind", spp=1)
+    table = run_benchmark(out=tmp_path / "o", registry=registry, scenes=[], scene_dirs=[tmp_path / "camera",
+                          tmp_path / "blind"], filters=["svgf"], metrics=["rmse"], executor="inline",
+                          cache_dir=tmp_path / "c", seeds=[0], timing_at=()).table
+    assert set(table.status) == {"ok"}
+    guides = table.groupby("scene").guides.agg(set).to_dict()
+    assert guides == {"camera": {"albedo,depth,motion(camera),normal; without motion,object_id"},
+                      "blind": {"albedo,depth,normal; without motion,object_id"}}
+
+
 def _svgf_run(registry, frames):
     filt = registry.filters["svgf"].factory(backend="cpu")
     filt.reset()
