@@ -231,6 +231,18 @@ def test_a_run_on_a_capture_without_motion_names_camera_motion(registry, still_a
                       "blind": {"albedo,depth,normal; without motion,object_id"}}
 
 
+def test_the_leaderboard_keeps_camera_motion_apart_from_spatial_only():
+    import pandas as pd
+
+    from harness.results import entry_labels
+
+    guides = ["albedo,depth,motion,normal,object_id", "albedo,depth,motion(camera),normal; without motion,object_id",
+              "albedo,depth,normal; without motion,object_id"]
+    df = pd.DataFrame({"filter": "svgf", "preset": "", "backend": "cpu", "params": "{}", "spp": 1, "guides": guides})
+    assert list(entry_labels(df)) == ["svgf/cpu", "svgf/cpu [without motion,object_id; motion(camera)]",
+                                      "svgf/cpu [without motion,object_id]"]
+
+
 def _svgf_run(registry, frames):
     filt = registry.filters["svgf"].factory(backend="cpu")
     filt.reset()
