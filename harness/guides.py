@@ -117,48 +117,52 @@ def static_motion(view_proj, prev_view_proj, *, depth=None, position=None, backg
     cur, prev = _camera_rows(view_proj), _camera_rows(prev_view_proj)
     if cur is None or prev is None or (depth is None and position is None):
         return None
+    rows, shift, inverse = cur
+    prows, pshift, _ = prev
+    # clip (x, y, w) of this frame -> the previous frame's: prows @ inverse @ (clip - shift) + pshift
+    fold = prows @ inverse
     if position is not None:
-        pts = np.asarray(position, np.float64)
+        pts = np.asarray(position)
         h, w = pts.shape[:2]
     else:
         z = np.asarray(depth, np.float64)
         h, w = z.shape
-    ii, jj = np.meshgrid(np.arange(h, dtype=np.float64), np.arange(w, dtype=np.float64), indexing="ij")
-    rows, shift, inverse = cur
+    jj = np.arange(w, dtype=np.float64)
+    ii = np.arange(h, dtype=np.float64)[:, None]
     with np.errstate(all="ignore"):
         if position is None:
-            # clip (x, y, w) = (nx w, ny w, w) with w = s z, s the length of the w row's spatial part
-            s = np.linalg.norm(rows[2])
-            wc = s * z
+            # this frame's clip (x, y, w) = (nx w, ny w, w) with w = s z, s the length of the w
+            # row's spatial part; nx, ny: the pixel centre (the jittered sample) in NDC
+            wc = np.linalg.norm(rows[2]) * z
             nx = 2.0 * (jj + 0.5) / w - 1.0
             ny = 1.0 - 2.0 * (ii + 0.5) / h
-            clip = np.stack([nx * wc, ny * wc, wc], axis=-1) - shift
-            pts = clip @ inverse.T
+            const = pshift - fold @ shift
+            px, py, pw = (wc * (fold[k, 0] * nx + fold[k, 1] * ny + fold[k, 2]) + const[k] for k in range(3))
             ok = np.isfinite(z) & (z > 0.0)
             sky = z == np.inf
         else:
-            ok = np.isfinite(pts).all(axis=-1)
+            x0, x1, x2 = (np.asarray(pts[..., k], np.float64) for k in range(3))
+            px, py, pw = (prows[k, 0] * x0 + prows[k, 1] * x1 + prows[k, 2] * x2 + pshift[k] for k in range(3))
+            ok = np.isfinite(x0) & np.isfinite(x1) & np.isfinite(x2)
             sky = np.zeros((h, w), bool)
         if background is not None:
             sky = sky | np.asarray(background, bool)
-        homog = np.concatenate([pts, np.ones((h, w, 1))], axis=-1)
         if sky.any():
             # the direction through the unjittered pixel centre, a point at infinity (w = 0)
-            nx = 2.0 * (jj[sky] - jitter[0] + 0.5) / w - 1.0
-            ny = 1.0 - 2.0 * (ii[sky] - jitter[1] + 0.5) / h
-            direction = np.stack([nx, ny, np.ones_like(nx)], axis=-1) @ inverse.T
-            homog[sky] = np.concatenate([direction, np.zeros((len(nx), 1))], axis=-1)
+            si, sj = np.nonzero(sky)
+            nx = 2.0 * (sj - jitter[0] + 0.5) / w - 1.0
+            ny = 1.0 - 2.0 * (si - jitter[1] + 0.5) / h
+            for k, out in enumerate((px, py, pw)):
+                out[sky] = fold[k, 0] * nx + fold[k, 1] * ny + fold[k, 2]
             ok = ok | sky
-        prows, pshift, _ = prev
-        prev_clip = homog[..., :3] @ prows.T + homog[..., 3:] * pshift
-        pw = prev_clip[..., 2]
-        x = (prev_clip[..., 0] / pw + 1.0) * 0.5 * w - 0.5 + prev_jitter[0]
-        y = (1.0 - prev_clip[..., 1] / pw) * 0.5 * h - 0.5 + prev_jitter[1]
+        x = (px / pw + 1.0) * 0.5 * w - 0.5 + prev_jitter[0]
+        y = (1.0 - py / pw) * 0.5 * h - 0.5 + prev_jitter[1]
+        ok &= (pw > 0.0) & np.isfinite(x) & np.isfinite(y)
     margin = w + h
-    ok &= (pw > 0.0) & np.isfinite(x) & np.isfinite(y)
-    x = np.where(ok, np.clip(np.where(ok, x, 0.0), -margin, w - 1 + margin), -margin)
-    y = np.where(ok, np.clip(np.where(ok, y, 0.0), -margin, h - 1 + margin), -margin)
-    return np.stack([x - jj, y - ii], axis=-1).astype(np.float32)
+    motion = np.empty((h, w, 2), np.float32)
+    motion[..., 0] = np.where(ok, np.clip(x, -margin, w - 1 + margin), -margin) - jj
+    motion[..., 1] = np.where(ok, np.clip(y, -margin, h - 1 + margin), -margin) - ii
+    return motion
 
 
 def camera_motion(frame, prev_jitter=(0.0, 0.0)) -> np.ndarray | None:
