@@ -200,7 +200,8 @@ def test_the_guides_column_names_camera_motion(registry):
     vp[3] = (0.0, 0.0, -1.0, 0.0)
     metas = [FrameMeta(camera_cut=True, view_proj=vp), FrameMeta(view_proj=vp, prev_view_proj=vp)]
     assert svgf.motion_from_camera
-    assert svgf.guides_used(CAPTURE | {"depth"}, metas) == "albedo,depth,motion(camera),normal; without motion,object_id"
+    derived = "albedo,depth,motion(camera),normal; without motion,object_id"
+    assert svgf.guides_used(CAPTURE | {"depth"}, metas) == derived
     assert svgf.guides_used(CAPTURE | {"depth"}, [FrameMeta()] * 2) == "albedo,depth,normal; without motion,object_id"
     assert svgf.guides_used(CAPTURE | {"depth"}) == "albedo,depth,normal; without motion,object_id"
     # svgf does not read position, so position alone gives it nothing to unproject
