@@ -78,6 +78,7 @@ def test_crop_camera_keeps_the_large_frames_pixel_size_and_aims_at_the_crop():
         assert np.tan(np.radians(cam.fov) / 2) == pytest.approx(np.tan(np.radians(base.fov) / 2) * size / height)
 
 
+@pytest.mark.slow
 def test_writer_stores_compressed_sequences_with_gbuffer_motion_and_ssaa(tiny):
     from harness import halton_jitter
 
@@ -127,6 +128,7 @@ def test_writer_resumes_renders_only_what_is_missing_and_refuses_other_settings(
     assert not list(folder.glob(".*tmp*"))
 
 
+@pytest.mark.slow
 def test_training_resumed_from_its_checkpoint_gives_the_same_weights(tiny, tmp_path):
     config = EpochConfig(epochs=3, batch=2, crop=8, eval_every=1, snapshots=(2,))
     whole = train_on_dataset(tiny, tmp_path / "whole.npz", seed=1, config=config)
