@@ -4,6 +4,7 @@ training lengths, trained on the paper-scale dataset (``plugins/filters/aa_rnn/d
     python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E]
     python benchmarks/aa_rnn_curve.py evaluate --data DIR --out DIR [--test-limit N] [--only GLOB]
     python benchmarks/aa_rnn_curve.py report   --out DIR [--plot docs/images/aa_rnn_curve.png]
+    python benchmarks/aa_rnn_curve.py versus   --run RUN_DIR [--first aa_rnn --second taa --metric ssim]
 
 ``train`` trains one point (the first N sequences of the training split, seed S) with
 ``dataset_training.train_on_dataset`` (checkpointed: run it again to resume), for ``--epochs``
@@ -20,7 +21,11 @@ and a half of the run. ``evaluate`` scores every weights file of the folder not 
 
 Results go to ``DIR/scores.json`` (several ``evaluate`` processes, each with its own ``--only``,
 can share it). ``report`` prints the Markdown tables (mean and range over seeds) and draws the
-plot. Everything runs with one PyTorch thread; run it with ``NUMBA_NUM_THREADS=1`` to run several at once.
+plot. ``versus`` reads a stored ``denoise-bench run --task antialias`` and prints, per scene and for
+the mean over scenes, both filters' scores with 95% bootstrap intervals over seeds and frames and
+their paired difference (:mod:`harness.statistics`, as the leaderboard computes them); it exits
+with status 1 unless the first filter's mean is above the second's (the AA bar). Everything runs
+with one PyTorch thread; run it with ``NUMBA_NUM_THREADS=1`` to run several at once.
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ from harness import Frame, FrameMeta, encode_srgb, load_plugins  # noqa: E402
 NAME = re.compile(r"^n(\d+)-s(\d+)(?:-e(\d+))?\.npz$")
 #: scored once: the aliased input, TAA's defaults and ``aa_rnn`` with its shipped weights
 BASELINES = ("noaa", "taa", "aa_rnn")
-LABELS = {"noaa": "`noaa`", "taa": "`taa`", "aa_rnn": "`aa_rnn`, shipped weights"}
+LABELS = {"noaa": "`noaa`", "taa": "`taa`", "aa_rnn": "`aa_rnn`, the weights shipped when scored"}
 
 
 def train(args) -> None:
@@ -256,6 +261,53 @@ def _plot(scores: dict, points: dict, path: Path) -> None:
     print(path)
 
 
+def _cells(df, name: str, metric: str, scene: str | None = None):
+    from harness.statistics import CELL_KEYS
+
+    rows = df[(df["filter"] == name) & (df.status == "ok")]
+    if scene is not None:
+        rows = rows[rows.scene == scene]
+    return rows[[*CELL_KEYS, metric]].dropna(subset=[metric]).rename(columns={metric: "value"})
+
+
+def _p_value(p: float) -> str:
+    from harness.statistics import RESAMPLES
+
+    return f"<{1.0 / RESAMPLES:.0e}" if p == 0.0 else f"{p:.2g}"
+
+
+def versus(args) -> int:
+    from harness.results import read_results
+    from harness.statistics import interval, paired
+
+    df = read_results(args.run)
+    df = df[df.task == "antialias"]
+    for name in (args.first, args.second):
+        if _cells(df, name, args.metric).empty:
+            raise ValueError(f"{args.run}: no ok rows of filter {name!r} with metric {args.metric!r} on task antialias")
+    scenes = sorted(set(_cells(df, args.first, args.metric).scene) & set(_cells(df, args.second, args.metric).scene))
+    first, second = f"`{args.first}`", f"`{args.second}`"
+    print(f"| scene | {first} {args.metric} [95%] | {second} {args.metric} [95%] | {first} - {second} [95%] | p | "
+          "frames x seeds |")
+    print("|---|---|---|---|---|---|")
+
+    def row(label, a, b):
+        ia, ib, d = interval(a), interval(b), paired(a, b)
+        print(f"| {label} | {ia.mean:.4f} [{ia.low:.4f}, {ia.high:.4f}] | {ib.mean:.4f} [{ib.low:.4f}, {ib.high:.4f}] "
+              f"| {d.difference:+.4f} [{d.low:+.4f}, {d.high:+.4f}] | {_p_value(d.p_value)} | {d.cells} |")
+        return ia.mean, ib.mean
+
+    for scene in scenes:
+        row(scene, _cells(df, args.first, args.metric, scene), _cells(df, args.second, args.metric, scene))
+    keep = lambda c: c[c.scene.isin(scenes)]  # noqa: E731
+    a, b = row("mean of the scenes", keep(_cells(df, args.first, args.metric)),
+               keep(_cells(df, args.second, args.metric)))
+    ok = a > b
+    print(f"\nbar: {args.first}'s mean {args.metric} {a:.4f} {'above' if ok else 'not above'} {args.second}'s {b:.4f} "
+          f"on {len(scenes)} scenes: {'pass' if ok else 'fail'}")
+    return 0 if ok else 1
+
+
 def main(argv=None) -> int:
     ap = parser(__doc__)
     sub = ap.add_subparsers(dest="command", required=True)
@@ -279,9 +331,13 @@ def main(argv=None) -> int:
     r = sub.add_parser("report")
     r.add_argument("--out", required=True)
     r.add_argument("--plot", default=None)
+    v = sub.add_parser("versus")
+    v.add_argument("--run", required=True, help="the output folder of a denoise-bench run --task antialias")
+    v.add_argument("--first", default="aa_rnn")
+    v.add_argument("--second", default="taa")
+    v.add_argument("--metric", default="ssim", help="a metric where higher is better")
     args = ap.parse_args(argv)
-    {"train": train, "evaluate": evaluate, "report": report}[args.command](args)
-    return 0
+    return {"train": train, "evaluate": evaluate, "report": report, "versus": versus}[args.command](args) or 0
 
 
 if __name__ == "__main__":

@@ -16,7 +16,16 @@ from harness.buffers import (
     expected_shape,
 )
 from harness.exr import ExrError, read_channels, read_size, write_capture, write_channels, write_exr
-from harness.guides import constant_depth, one_object, pinhole_position, zero_motion
+from harness.guides import (
+    CAMERA_MOTION,
+    camera_motion,
+    camera_motion_ready,
+    constant_depth,
+    one_object,
+    pinhole_position,
+    static_motion,
+    zero_motion,
+)
 from harness.hookspecs import hookimpl
 from harness.images import display_variance, encode_srgb, write_png
 from harness.jitter import JITTER_CYCLE, halton_jitter, radical_inverse
@@ -55,9 +64,13 @@ __version__ = "0.1.0"
 configure_numba_cache()
 
 __all__ = [
+    "CAMERA_MOTION",
+    "camera_motion",
+    "camera_motion_ready",
     "constant_depth",
     "one_object",
     "pinhole_position",
+    "static_motion",
     "zero_motion",
     "AdaptiveRenderer",
     "CHANNELS",

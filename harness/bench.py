@@ -327,12 +327,16 @@ def bench_filters(
         for count in threads:
             for spec in specs:
                 fparams, preset = configured[spec.name]
-                job = Job(task, scene, rname, spec.name, backend, json.dumps(fparams, sort_keys=True, default=str),
-                          preset, 1, 0, width=width, height=height, frames=frames, repeats=repeats)
+                job = Job(task, scene, rname, spec.name, setup.backend_of(spec, backend),
+                          json.dumps(fparams, sort_keys=True, default=str), preset, 1, 0, width=width, height=height,
+                          frames=frames, repeats=repeats)
                 tasks.append(BenchUnit(job, shared, count, score=metric is not None))
         for index, outcome in executor.run(tasks):
             bench_task = tasks[index]
             row, stage = _table_row(bench_task, outcome, width * height, metric)
+            note = backend_note(bench_task.job.backend, backend)
+            if note:
+                row["notes"] = "; ".join(n for n in (row.get("notes", ""), note) if n)
             rows.append(row)
             if stage:
                 stages.append(stage)
@@ -404,6 +408,18 @@ class BenchSetup:
         channels = frozenset().union(*[(s.requires | s.optional) & rspec.provides for s in specs])
         return cls(names, peers, specs, rname, rspec, configured, sequence_frames(registry, scene, specs, steady),
                    metric, channels)
+
+    def backend_of(self, spec, backend: str) -> str:
+        """The backend ``spec`` is timed on: ``backend``, or a peer's first own backend where it lacks
+        that one (``--backend cuda`` with CPU-only peers times the peers on the CPU, and says so)."""
+        if spec.name in self.peers and backend not in spec.backends:
+            return spec.backends[0]
+        return backend
+
+
+def backend_note(job_backend: str, backend: str) -> str:
+    """The note of a row timed on another backend than the bench's (empty when the same)."""
+    return "" if job_backend == backend else f"timed on {job_backend}: no {backend} backend"
 
 
 def sequence_frames(registry, scene: str, specs: Sequence, steady: int) -> int:

@@ -36,6 +36,7 @@ from harness.bench import (
     BenchResult,
     BenchSetup,
     add_ratios,
+    backend_note,
     bench_environment,
     bench_inputs,
     filter_memory,
@@ -231,12 +232,14 @@ def entries_for(specs: Sequence, configured: Mapping, roles: Mapping[str, str], 
                 renderer: str, backend: str, size: tuple[int, int], frames: int, threads: Sequence[int | None],
                 baselines: Mapping[str, tuple] = (), floors: bool = True) -> list[Entry]:
     """The entries of one resolution: each filter and peer, each baseline (after its filter),
-    each floor (CPU backend), at each thread count."""
+    each floor (CPU backend), at each thread count. A peer without ``backend`` is timed on its
+    first own backend (the CPU)."""
     entries = []
     for count in threads:
         for spec in specs:
             params, preset = configured[spec.name]
-            job = Job(task, scene, renderer, spec.name, backend, json.dumps(params, sort_keys=True, default=str),
+            own = spec.backends[0] if roles[spec.name] == "peer" and backend not in spec.backends else backend
+            job = Job(task, scene, renderer, spec.name, own, json.dumps(params, sort_keys=True, default=str),
                       preset, 1, 0, width=size[0], height=size[1], frames=frames, repeats=1)
             mine = [Entry(spec.name, job, count, roles[spec.name])]
             if spec.name in baselines:
@@ -280,6 +283,7 @@ def _rows(task: RoundsTask, measure: RoundsMeasure, metric: str | None) -> tuple
                        "x_cpu_median": float(np.median(x_cpu))})
 
     counts = list(dict.fromkeys(e.threads for e in task.entries))
+    bench_backend = next((e.job.backend for e in task.entries if e.role == "filter"), "cpu")
     firsts = [e.label for e in task.entries if e.role == "filter" and e.threads == counts[0]]
     for entry in task.entries:
         if entry.role == "floor":
@@ -299,6 +303,9 @@ def _rows(task: RoundsTask, measure: RoundsMeasure, metric: str | None) -> tuple
                          compile_ms=mine.compile_ms, floor=floors, x_of_floor=x_of_floor, memory=mine.memory,
                          pixels=pixels, notes=mine.notes)
         row["rounds"] = len(mine.ms)
+        note = backend_note(entry.job.backend, bench_backend)
+        if note:
+            row["notes"] = "; ".join(n for n in (row["notes"], note) if n)
         if metric:
             row["rmse"] = mine.rmse
         if task.balance:

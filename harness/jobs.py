@@ -97,7 +97,7 @@ def run_job(registry, job: Job, inputs: GroupInputs, metrics: MetricPlan, **opti
     result = _run_job(registry, job, inputs, metrics, **options)
     if inputs.frames:
         spec = registry.get("filter", job.filter)
-        guides = spec.guides_used(inputs.frames[0].channels)
+        guides = spec.guides_used(inputs.frames[0].channels, [f.meta for f in inputs.frames])
         for row in result.rows:
             row.guides = guides
     return result

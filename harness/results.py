@@ -78,16 +78,27 @@ def entry_labels(df: pd.DataFrame) -> pd.Series:
     """A leaderboard entry name per row: ``filter[preset]/backend``, plus ``name=value`` of the
     parameters that differ where one filter ran with several (a sweep), and ``@Nspp`` where the
     table has several spp. An entry that ran a degraded mode (its ``guides`` name missing ones) is
-    marked ``[without X,Y]``, so it is never pooled or confused with the full filter."""
+    marked ``[without X,Y]``, plus the guides it derived in their place (``; motion(camera)``),
+    so it is never pooled or confused with the full filter or with another degraded mode."""
     label = df["filter"] + df["preset"].map(lambda p: f"[{p}]" if p else "") + "/" + df["backend"]
     if "guides" in df:
-        label = label + df["guides"].fillna("").map(lambda g: f" [{g.split('; ', 1)[1]}]" if "; without" in g else "")
+        label = label + df["guides"].fillna("").map(_mode)
     for _, params in df.groupby("filter")["params"]:
         if params.nunique() > 1:
             label.loc[params.index] = label.loc[params.index] + " " + _varying(params)
     if df["spp"].nunique() > 1:
         label = label + df["spp"].map(lambda n: f" @{n}spp")
     return label
+
+
+def _mode(guides: str) -> str:
+    """The degraded mode named by a ``guides`` value: ``" [without X,Y]"``, with ``"; a(b)"``
+    for guides derived in place of missing ones (named ``channel(source)``); "" for the full filter."""
+    if "; without" not in guides:
+        return ""
+    used, missing = guides.split("; ", 1)
+    derived = [g for g in used.split(",") if "(" in g]
+    return f" [{missing}" + (f"; {','.join(derived)}" if derived else "") + "]"
 
 
 def _varying(params: pd.Series) -> pd.Series:

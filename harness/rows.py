@@ -15,7 +15,8 @@ column is one field here.
 ``filter``, ``preset``    filter name and named preset ("" for defaults)
 ``params``                JSON of the filter parameters actually used
 ``backend``               ``cpu`` or ``cuda``
-``guides``                the guide channels the filter had (comma-separated), then ``; without X``
+``guides``                the guide channels the filter had (comma-separated; ``motion(camera)``: motion
+                          it derived from the camera, :func:`harness.camera_motion`), then ``; without X``
                           naming those of its full algorithm that were missing (a degraded mode,
                           :attr:`harness.FilterSpec.full_guides`); "" where it never ran
 ``spp``, ``seed``         nominal samples per pixel and seed of the render

@@ -12,6 +12,7 @@ from types import MappingProxyType
 from typing import Any
 
 from harness.buffers import CHANNELS
+from harness.guides import CAMERA_MOTION, camera_motion_ready
 from harness.params import Param, param_table
 
 BACKENDS = ("cpu", "cuda")
@@ -68,6 +69,11 @@ class FilterSpec:
         ``optional``. A job whose frames lack some of them runs the filter's degraded mode: its
         rows' ``guides`` column names the guides it had and ``without`` the others, and the
         leaderboard marks its entry. None: ``requires`` (never degraded).
+    motion_from_camera : bool
+        True if, on frames without ``motion``, the filter derives the motion of static geometry
+        from the camera (:func:`harness.camera_motion`) where the frames allow it
+        (:func:`harness.camera_motion_ready`); the ``guides`` column then lists
+        ``motion(camera)`` among the guides it had, and ``motion`` still among those it lacked.
     temporal : bool
         True if the filter keeps history between frames of a sequence.
     backends : tuple of str
@@ -123,6 +129,7 @@ class FilterSpec:
     requires: frozenset = frozenset({"color"})
     optional: frozenset = frozenset()
     full_guides: frozenset | None = None
+    motion_from_camera: bool = False
     temporal: bool = False
     backends: tuple = ("cpu",)
     params: Mapping[str, Any] = field(default_factory=dict)
@@ -198,11 +205,16 @@ class FilterSpec:
             raise ValueError(f"{where} has no parameter(s) {unknown}; parameters: {sorted(self.param_specs)}")
         return {k: self.param_specs[k].check(v, owner=f"{where}: parameter {k!r}") for k, v in values.items()}
 
-    def guides_used(self, channels) -> str:
+    def guides_used(self, channels, metas=()) -> str:
         """The ``guides`` column of a job whose frames hold ``channels``: the guide channels the
         filter reads (comma-separated), then ``; without X,Y`` where some of :attr:`full_guides`
-        are missing (the degraded mode)."""
-        used = sorted((self.requires | self.optional) & set(channels) - {"color"})
+        are missing (the degraded mode). With :attr:`motion_from_camera`, frames without
+        ``motion`` whose metadata ``metas`` (one :class:`harness.FrameMeta` per frame) allow it
+        add ``motion(camera)`` to the guides it had."""
+        seen = (self.requires | self.optional) & set(channels)
+        used = sorted(seen - {"color"})
+        if self.motion_from_camera and "motion" not in seen and camera_motion_ready(seen, metas):
+            used = sorted([*used, CAMERA_MOTION])
         missing = sorted(self.full_guides - set(channels))
         return ",".join(used) + (f"; without {','.join(missing)}" if missing else "")
 
@@ -212,6 +224,7 @@ class FilterSpec:
             "requires": sorted(self.requires),
             "optional": sorted(self.optional),
             "full_guides": sorted(self.full_guides),
+            "motion_from_camera": self.motion_from_camera,
             "temporal": self.temporal,
             "backends": list(self.backends),
             "params": dict(self.params),

@@ -78,6 +78,7 @@ def test_crop_camera_keeps_the_large_frames_pixel_size_and_aims_at_the_crop():
         assert np.tan(np.radians(cam.fov) / 2) == pytest.approx(np.tan(np.radians(base.fov) / 2) * size / height)
 
 
+@pytest.mark.slow
 def test_writer_stores_compressed_sequences_with_gbuffer_motion_and_ssaa(tiny):
     from harness import halton_jitter
 
@@ -127,6 +128,7 @@ def test_writer_resumes_renders_only_what_is_missing_and_refuses_other_settings(
     assert not list(folder.glob(".*tmp*"))
 
 
+@pytest.mark.slow
 def test_training_resumed_from_its_checkpoint_gives_the_same_weights(tiny, tmp_path):
     config = EpochConfig(epochs=3, batch=2, crop=8, eval_every=1, snapshots=(2,))
     whole = train_on_dataset(tiny, tmp_path / "whole.npz", seed=1, config=config)
@@ -155,6 +157,36 @@ def test_cli_options_make_the_dataset_and_train(tiny, tmp_path, capsys):
     assert "made with" in capsys.readouterr().err
     assert main(["train", "aa_rnn", "-o", f"data={tmp_path / 'none'}"]) == 2  # training needs --output
     assert "--output" in capsys.readouterr().err and not (tmp_path / "none").exists()
+
+
+@pytest.mark.slow
+def test_train_without_options_runs_the_shipped_recipe(tmp_path, monkeypatch, caplog):
+    from plugins.filters.aa_rnn import weights as W
+
+    data = tmp_path / "cache" / "data"
+    recipe = {"data": str(data), "train_sequences": 2, "epochs": 2, "val_sequences": 1, "eval_every": 1, "batch": 2,
+              "crop": 8, "executor": "inline"}
+    monkeypatch.setitem(W.SHIPPED, W.DEFAULT_LAYERS, dict(W.SHIPPED[W.DEFAULT_LAYERS], recipe=recipe,
+                                                          dataset=TINY.to_json(), seed=0))
+    out = tmp_path / "w.npz"
+    caplog.set_level("INFO")
+    assert main(["train", "aa_rnn", "--output", str(out)]) == 0
+    manifest = DS.read_manifest(data)  # the dataset made first, with the recorded settings
+    assert manifest["complete"] and manifest["config"] == TINY.to_json()
+    meta = load_weights(out)[1]
+    assert meta["recipe"] == "dataset" and meta["seed"] == 0 and meta["epochs_run"] == 2
+    assert meta["config"]["train_sequences"] == 2 and meta["config"]["val_sequences"] == 1
+    # the checkpoint lies beside the dataset, not beside the (shipped) weights
+    assert (data.parent / "w.npz.ckpt").is_file() and not checkpoint_path(out).exists()
+    assert "differs from the shipped weights" in caplog.text
+    # the same weights as the options spelled out
+    again = tmp_path / "again.npz"
+    assert main(["train", "aa_rnn", "--output", str(again)] + [a for k, v in recipe.items()
+                                                                for a in ("-o", f"{k}={v}")]) == 0
+    assert load_weights(again)[1]["arrays_sha256"] == meta["arrays_sha256"]
+    # another seed, or a quick run, would replace the shipped file: refused without --output
+    assert main(["train", "aa_rnn", "--seed", "1"]) == 2
+    assert main(["train", "aa_rnn", "--quick"]) == 2
 
 
 def test_option_without_equals_is_a_usage_error():

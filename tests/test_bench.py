@@ -237,3 +237,35 @@ def test_temporal_floor_is_warmed_up_on_its_history_layout_before_it_is_timed(mo
     assert timing["repeats"] == 1 and math.isfinite(timing["ms_median"])
     assert len(harness.floor._KERNELS) == 2  # without and with the history
     assert sum(compiled_during_timed_calls) == 0
+
+
+def test_peers_without_the_benchs_backend_are_timed_on_their_own():
+    """``--backend cuda`` with CPU-only peers: the peers run on the CPU and their rows say so."""
+    from harness.bench import BenchSetup, backend_note
+
+    registry = load_plugins()
+    setup = BenchSetup.of(registry, ["eaw"], ["opencv_jbf"], scene="synthetic-edges", renderer=None,
+                          task="denoise", params=None, presets=None, steady=0, error=False)
+    eaw, jbf = registry.filters["eaw"], registry.filters["opencv_jbf"]
+    assert "cuda" in eaw.backends and "cuda" not in jbf.backends
+    assert setup.backend_of(eaw, "cuda") == "cuda" and setup.backend_of(jbf, "cuda") == "cpu"
+    assert setup.backend_of(jbf, "cpu") == "cpu"
+    assert backend_note("cpu", "cuda") == "timed on cpu: no cuda backend" and backend_note("cpu", "cpu") == ""
+
+
+@pytest.mark.slow
+def test_bench_on_the_cuda_simulator_times_cpu_only_peers_on_the_cpu(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
+    out = subprocess.run([sys.executable, "-m", "harness.cli", "bench", "eaw", "--backend", "cuda", "--peers",
+                          "opencv_jbf", "--resolution", "8x8", "--repeats", "1", "--no-error", "--quiet",
+                          "--cache-dir", str(tmp_path / "cache")], env=env, capture_output=True, text=True,
+                         timeout=900)
+    assert out.returncode == 0, out.stderr
+    table = out.stdout.split("Per-stage")[0]
+    rows = [line for line in table.splitlines() if line.strip().startswith(("eaw", "opencv_jbf"))]
+    assert len(rows) == 2 and all(" ok " in r for r in rows), out.stdout
+    assert "timed on cpu: no cuda backend" in next(r for r in rows if r.strip().startswith("opencv_jbf"))

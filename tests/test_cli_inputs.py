@@ -54,23 +54,37 @@ BAD = {
 }
 
 
-#: cases that load every plugin or open a scene before refusing (about 5 s each): the full tier
-SLOW_CASES = {"train untrainable", "unknown param", "negative param", "unknown preset", "param type",
-              "show nothing", "scene dir missing", "param choice"}
+def _with_folders(args, tmp_path):
+    return [*args, "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"] if args[0] == "run" else args
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.slow) if c in SLOW_CASES else c
-                                  for c in sorted(BAD)])
-def test_bad_input_is_one_line_and_exit_2(case, tmp_path):
-    args, expected = BAD[case]
-    if args[0] == "run":
-        args = [*args, "--out", tmp_path / "o", "--cache-dir", tmp_path / "c"]
-    out = cli(args)
-    assert out.returncode == 2, f"{case}: exit {out.returncode}\n{out.stdout}\n{out.stderr}"
-    lines = [line for line in out.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1, f"{case}: expected one line, got:\n{out.stderr}"
+def _one_line(case, returncode, stderr, expected):
+    assert returncode == 2, f"{case}: exit {returncode}\n{stderr}"
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, f"{case}: expected one line, got:\n{stderr}"
     assert expected in lines[0], f"{case}: {lines[0]!r} lacks {expected!r}"
-    assert "Traceback" not in out.stderr
+    assert "Traceback" not in stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_is_one_line_and_exit_2(case, tmp_path):
+    """The console script in its own process (the full tier; the fast tier calls ``main`` in-process)."""
+    args, expected = BAD[case]
+    out = cli(_with_folders(args, tmp_path))
+    _one_line(case, out.returncode, out.stderr, expected)
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_is_one_line_and_exit_2_in_process(case, tmp_path, capsys):
+    from harness.cli import main
+
+    args, expected = BAD[case]
+    try:
+        code = main([str(a) for a in _with_folders(args, tmp_path)])
+    except SystemExit as exc:  # argparse's refusals
+        code = exc.code
+    _one_line(case, code, capsys.readouterr().err, expected)
 
 
 @pytest.mark.slow

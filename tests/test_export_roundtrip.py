@@ -19,6 +19,7 @@ def _run(args, out):
     return df.sort_values(["filter", "frame"]).reset_index(drop=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("scene,frames", [("street", 3), ("cornell", 1)])
 def test_exported_scene_scores_like_the_builtin(tmp_path, scene, frames):
     common = ["--resolution", "32x24", "--frames", str(frames), "--cache-dir", tmp_path / "c"]

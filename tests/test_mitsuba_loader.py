@@ -189,6 +189,7 @@ THIRD_PARTY = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(THIRD_PARTY))
 def test_third_party_scene(name):
     folder = SHARED / name

@@ -456,7 +456,7 @@ def _atrous_oracle():
     return run
 
 
-@pytest.mark.parametrize("nsig", [1, 2])
+@pytest.mark.parametrize("nsig", [pytest.param(1, marks=pytest.mark.slow), 2])
 def test_cpu_atrous_planes_match_the_per_pixel_filter(nsig):
     # the cpu backend's padded-plane kernel against the per-pixel definition (which the cuda
     # backend runs), over five chained iterations with background holes, borders and a large
@@ -518,7 +518,7 @@ def test_expneg_error_bound_cut_and_no_subnormals():
     assert np.all(y[inside] >= np.finfo(np.float32).tiny)  # no subnormal weight
 
 
-@pytest.mark.parametrize("nsig, has_emission", [(1, False), (2, True)])
+@pytest.mark.parametrize("nsig, has_emission", [pytest.param(1, False, marks=pytest.mark.slow), (2, True)])
 def test_cpu_prepare_rows_equal_the_per_pixel_preparation(nsig, has_emission):
     # the cpu backend's row-vectorized demodulation and remodulation against the per-pixel
     # definitions (which the cuda backend runs), bit for bit, on inputs full of bad values

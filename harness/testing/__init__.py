@@ -138,6 +138,15 @@ def fast_stress_cases(items) -> dict[str, set[str]]:
     return fast
 
 
+def _loads_scene_files(item, reg) -> bool:
+    """Whether a check opens third-party scene files (a ``real``-tier scene, or a renderer of that
+    tier alone): seconds to tens of seconds each, so the full tier's."""
+    spec = reg.get(item.kind, item.name)
+    if item.kind == "scene":
+        return getattr(spec, "tier", "procedural") == "real"
+    return item.kind == "renderer" and set(getattr(spec, "scene_tiers", ())) <= {"real"}
+
+
 def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True,
                             stress="light", xfail=None):
     """A ``pytest.mark.parametrize`` over :func:`plugin_checks`, as the argument ``plugin_check``.
@@ -149,7 +158,8 @@ def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=N
     cuda_checks : bool
         Check the ``cuda`` backend where ``numba.cuda`` can run.
     stress : {"light", "all", None}
-        Which stress cases filters get.
+        Which stress cases filters get (one per group of the battery per filter in the fast tier,
+        the others marked ``slow``; the checks that open third-party scene files are ``slow`` too).
     xfail : mapping of str to str, optional
         Test ids (``filter:NAME[cpu]-stress:CASE``) expected to fail, with the reason, on top
         of what the plugins declare (ids of plugins that are not installed are ignored; a
@@ -167,6 +177,8 @@ def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=N
         reason = item.xfail_reason(reg.get(item.kind, item.name)) or extra.pop(item.id, None)
         marks = [pytest.mark.xfail(reason=reason, strict=True)] if reason else []
         if isinstance(item.check, StressCheck) and item.check.case.name not in fast.get(item.name, ()):
+            marks.append(pytest.mark.slow)
+        elif _loads_scene_files(item, reg):
             marks.append(pytest.mark.slow)
         params.append(pytest.param(item, id=item.id, marks=marks))
     checked = {item.id[: -len(item.check.__name__)] for item in items}  # "kind:name[backend]-" of each plugin

@@ -3,8 +3,9 @@
 Inputs of frame t: the aliased colour, normals and depth, and the network's own previous output
 warped to frame t by the motion vectors (the recurrent state). A stack of bias-free 3x3
 convolutions with 32 channels and ReLU and a 3x3 head predict a correction of the colour. Trained
-with PyTorch on random procedural scenes (never the benchmark scenes) against 8x8 SSAA; inference
-with ``torch.inference_mode`` on the CPU (or a CUDA GPU). See ``docs/antialias.md``.
+with PyTorch on crops of random procedural scenes and of Mitsuba scenes (never the benchmark
+scenes) against 8x8 SSAA; inference with ``torch.inference_mode`` on the CPU (or a CUDA GPU).
+See ``docs/antialias.md``.
 """
 
 from harness import FilterSpec, Param, hookimpl
@@ -22,19 +23,25 @@ PARAMS = {
 def train_aa_rnn(seed: int = 0, output=None, quick: bool = False, **options):
     """Train the network and write its weights (``denoise-bench train aa_rnn``).
 
-    Without options: the recipe of the shipped weights, :func:`plugins.filters.aa_rnn.train.train`.
-    With ``-o data=DIR ...``: the paper-scale dataset and training,
-    :func:`plugins.filters.aa_rnn.dataset_training.run_options`.
+    Without options: the recipe of the shipped weights,
+    :func:`plugins.filters.aa_rnn.dataset_training.run_shipped_recipe` (the paper-scale dataset,
+    made first, then 12 epochs on 826 of its training sequences). With ``-o data=DIR ...``: a
+    dataset and a training run of those settings,
+    :func:`plugins.filters.aa_rnn.dataset_training.run_options`. ``quick``: a run of seconds on a
+    few small random scenes (:func:`plugins.filters.aa_rnn.train.train`), for smoke tests; it
+    needs ``output``.
     """
-    if options:
-        from .dataset_training import run_options
+    if quick:
+        if options:
+            raise ValueError("aa_rnn trainer: --quick takes no options; size a dataset run with its options")
+        if output is None:
+            raise ValueError("aa_rnn trainer: --quick needs --output (it must not replace the shipped weights)")
+        from .train import train
 
-        if quick:
-            raise ValueError("aa_rnn trainer: --quick is the default recipe's; size a dataset run with its options")
-        return run_options(seed, output, options)
-    from .train import train
+        return train(seed=seed, output=output, quick=True)
+    from .dataset_training import run_options, run_shipped_recipe
 
-    return train(seed=seed, output=output, quick=quick)
+    return run_options(seed, output, options) if options else run_shipped_recipe(seed, output)
 
 
 #: stress cases this filter fails, with the measured reason (run as strict expected failures)

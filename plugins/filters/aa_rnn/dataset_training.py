@@ -123,13 +123,15 @@ def snapshot_path(output: Path, epoch: int) -> Path:
 
 
 def train_on_dataset(folder, output, seed: int = 0, config: EpochConfig = EpochConfig(),
-                     until_epoch: int | None = None) -> Path | None:
+                     until_epoch: int | None = None, checkpoint=None) -> Path | None:
     """Train on the dataset in ``folder`` and write the best weights to ``output``.
 
-    Returns the weights file, or None when ``until_epoch`` stopped the run before the end (the
+    The checkpoint is ``checkpoint``, by default :func:`checkpoint_path` of ``output``. Returns
+    the weights file, or None when ``until_epoch`` stopped the run before the end (the
     checkpoint holds it; call again to go on).
     """
     folder, output = Path(folder), Path(output)
+    ckpt = Path(checkpoint) if checkpoint is not None else checkpoint_path(output)
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -138,12 +140,13 @@ def train_on_dataset(folder, output, seed: int = 0, config: EpochConfig = EpochC
         if not train or not val:
             raise ValueError(f"aa_rnn training: dataset {folder} has {len(train)} training and {len(val)} validation "
                              f"sequences; it needs at least one of each")
-        return _fit(folder, output, seed, config, train, val, until_epoch)
+        return _fit(folder, output, ckpt, seed, config, train, val, until_epoch)
     finally:
         torch.set_num_threads(threads)
 
 
-def _fit(folder: Path, output: Path, seed: int, config: EpochConfig, train, val, until_epoch) -> Path | None:
+def _fit(folder: Path, output: Path, ckpt: Path, seed: int, config: EpochConfig, train, val,
+         until_epoch) -> Path | None:
     settings = {"seed": seed, "config": _jsonable(dataclasses.asdict(config)),
                 "training_data_sha256": _digest(train, {"folder_manifest": _manifest_digest(folder)}),
                 "validation_data_sha256": _digest(val, {})}
@@ -151,7 +154,6 @@ def _fit(folder: Path, output: Path, seed: int, config: EpochConfig, train, val,
     total = per_epoch * config.epochs
     model = AARNN(config.layers)
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
-    ckpt = checkpoint_path(output)
     if ckpt.is_file():
         state = torch.load(ckpt, weights_only=True)
         if state["settings"] != settings:
@@ -236,7 +238,7 @@ RENDER_OPTIONS = {"workers", "executor", "scheduler"}
 TRAIN_OPTIONS = {f.name for f in dataclasses.fields(EpochConfig)} | {"until_epoch"}
 
 
-def run_options(seed: int, output, options: dict) -> Path:
+def run_options(seed: int, output, options: dict, checkpoint=None) -> Path:
     """``denoise-bench train aa_rnn -o data=DIR [-o stage=dataset] [-o KEY=VALUE ...]``.
 
     Makes (or finishes) the dataset in ``data`` with the :data:`DATASET_OPTIONS` and the
@@ -245,7 +247,7 @@ def run_options(seed: int, output, options: dict) -> Path:
     :data:`TRAIN_OPTIONS` and writes the weights to ``output`` (required: the shipped weights
     come from the default recipe, see ``docs/antialias.md``). Returns the weights file, or the
     dataset's manifest with ``stage=dataset`` or when ``until_epoch`` stopped the training early
-    (its checkpoint is then the file beside ``output``).
+    (its checkpoint is then ``checkpoint``, by default the file beside ``output``).
     """
     if not logging.getLogger().handlers:  # progress on standard error when nothing else set logging up
         logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s")
@@ -271,5 +273,41 @@ def run_options(seed: int, output, options: dict) -> Path:
         return Path(folder) / "manifest.json"
     train = {k: options[k] for k in TRAIN_OPTIONS if k in options}
     until = train.pop("until_epoch", None)
-    path = train_on_dataset(folder, output, seed=seed, config=EpochConfig(**train), until_epoch=until)
-    return path if path is not None else checkpoint_path(Path(output))
+    ckpt = Path(checkpoint) if checkpoint is not None else checkpoint_path(Path(output))
+    path = train_on_dataset(folder, output, seed=seed, config=EpochConfig(**train), until_epoch=until, checkpoint=ckpt)
+    return path if path is not None else ckpt
+
+
+def run_shipped_recipe(seed: int = 0, output=None) -> Path:
+    """``denoise-bench train aa_rnn`` without options: the recipe of the shipped weights.
+
+    The options and dataset settings recorded in :data:`.weights.SHIPPED` (the paper-scale
+    dataset in ``datasets/cache/aa_rnn-data``, relative to the working directory, made or
+    finished first: all its 1900 sequences; then 12 epochs on its first 826 training sequences);
+    the weights go to ``output``, by default the shipped file, and the checkpoint beside the
+    dataset folder (not among the shipped files). Says whether the weights equal the shipped
+    ones: they do for the shipped seed where the dataset holds the same Mitsuba scenes and the
+    software is the same.
+    """
+    from .weights import DEFAULT_LAYERS, SHIPPED, arrays_digest, load_weights, shipped_weights
+
+    shipped = SHIPPED[DEFAULT_LAYERS]
+    if output is None and seed != shipped["seed"]:
+        raise ValueError(f"aa_rnn trainer: seed {seed} is not the shipped weights' ({shipped['seed']}); give --output "
+                         f"to keep the shipped file")
+    options = dict(shipped["recipe"])
+    folder = Path(options["data"])
+    output = Path(output) if output is not None else shipped_weights(DEFAULT_LAYERS)
+    manifest = DS.read_manifest(folder)
+    if manifest is None:  # a new folder: the shipped settings, the Mitsuba scenes resolved from those present
+        settings = {k: v for k, v in shipped["dataset"].items() if k != "mitsuba"}
+        options.update(sequences=settings.pop("sequences"), data_seed=settings.pop("seed"), **settings)
+    path = run_options(seed, output, options, checkpoint=folder.parent / f"{output.name}.ckpt")
+    made = DS.read_manifest(folder)["config"]
+    if made != shipped["dataset"]:
+        log.warning("aa_rnn: the dataset in %s was made with %s, not the shipped weights' %s: other training data",
+                    folder, made, shipped["dataset"])
+    same = arrays_digest(load_weights(path)[0]) == shipped["arrays"]
+    log.info("aa_rnn: %s %s the shipped weights (seed %d)", path, "reproduces" if same else "differs from",
+             shipped["seed"])
+    return path

@@ -43,7 +43,8 @@ class AARNNFilter:
         path = shipped_weights(layers) if weights is None else weights
         if weights is None and not path.is_file():
             raise WeightsError(f"aa_rnn: no shipped weights for {layers} layers ({path.name}); train them with "
-                               f"`python -m plugins.filters.aa_rnn.train --layers {layers}`")
+                               f"`denoise-bench train aa_rnn -o data=DIR -o layers={layers} --output FILE` and "
+                               f"pass weights=FILE")
         arrays, self.meta = load_weights(path)
         if self.meta["layers"] != layers:
             raise ValueError(f"aa_rnn: weights {path} have {self.meta['layers']} layers, the parameter says {layers}")

@@ -14,8 +14,9 @@ compares frame differences, so flicker and lag cost), frames weighted ``t + 1`` 
 count more), mean over pixels and channels. Adam (learning rate 5e-4, cosine decay to 1e-5),
 gradient norm clipped at 1. The validation L1 of whole sequences is measured every
 ``eval_every`` steps; the weights of the last step are written, with the step of the lowest
-validation L1 recorded beside them (``best_step``). (This recipe made the shipped weights; the
-paper-scale recipe, :mod:`.dataset_training`, writes the best step's weights.)
+validation L1 recorded beside them (``best_step``). (This recipe made the first shipped weights,
+replaced by those of the paper-scale recipe, :mod:`.dataset_training`, which writes the best
+epoch's weights; ``docs/antialias.md`` records both.)
 
 Reproducibility: scene seeds, crops, augmentation and batch order come from one seeded NumPy
 generator, the weights' initialisation from ``torch.manual_seed``, and PyTorch runs on one
@@ -38,15 +39,7 @@ from harness import load_plugins
 
 from . import data as D
 from .network import AARNN, inverse_tonemap, unroll
-from .weights import (
-    DEFAULT_LAYERS,
-    WeightsError,
-    arrays_digest,
-    load_weights,
-    model_arrays,
-    save_weights,
-    shipped_weights,
-)
+from .weights import DEFAULT_LAYERS, WeightsError, arrays_digest, load_weights, model_arrays, save_weights
 
 log = logging.getLogger(__name__)
 
@@ -215,14 +208,14 @@ def fit(model: AARNN, train: list[np.ndarray], val: list[np.ndarray], config: Tr
 
 def train(seed: int = 0, output=None, quick: bool = False, layers: int | None = None, cache=None,
           config: TrainConfig | None = None) -> Path:
-    """Train ``aa_rnn`` and write its weights (``denoise-bench train aa_rnn``).
+    """Train ``aa_rnn`` on random scenes and write its weights (``denoise-bench train aa_rnn --quick``).
 
     Parameters
     ----------
     seed : int
         Seeds the scenes, the batches and the initialisation.
-    output : path, optional
-        Where to write the weights; by default the shipped file of this depth.
+    output : path
+        Where to write the weights (required: this recipe no longer makes the shipped file).
     quick : bool
         A tiny run (seconds) for tests: :data:`QUICK` instead of :data:`FULL`.
     layers : int, optional
@@ -237,10 +230,13 @@ def train(seed: int = 0, output=None, quick: bool = False, layers: int | None = 
     pathlib.Path
         The weights file.
     """
+    if output is None:
+        raise ValueError("aa_rnn train: give an output file (the shipped weights come from `denoise-bench train "
+                         "aa_rnn`, the dataset recipe)")
     config = config or (QUICK if quick else FULL)
     if layers is not None:
         config = dataclasses.replace(config, layers=int(layers))
-    output = Path(output) if output is not None else shipped_weights(config.layers)
+    output = Path(output)
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     t_wall, t_cpu = time.perf_counter(), time.process_time()
@@ -293,13 +289,13 @@ def train(seed: int = 0, output=None, quick: bool = False, layers: int | None = 
 
 
 def main(argv=None) -> None:
-    """``python -m plugins.filters.aa_rnn.train [--layers L] [--seed S] [--output P] [--cache DIR] [--quick]``."""
+    """``python -m plugins.filters.aa_rnn.train --output P [--layers L] [--seed S] [--cache DIR] [--quick]``."""
     import argparse
 
     parser = argparse.ArgumentParser(description="train the aa_rnn network (any depth)")
     parser.add_argument("--layers", type=int, default=DEFAULT_LAYERS)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--output", default=None)
+    parser.add_argument("--output", required=True)
     parser.add_argument("--cache", default=None, help="folder to keep rendered training sequences in")
     parser.add_argument("--quick", action="store_true")
     args = parser.parse_args(argv)

@@ -27,12 +27,20 @@ DEFAULT_LAYERS = 2
 #: the shipped weights files, checked by the tests: ``file`` is the SHA-256 of the file's bytes
 #: (``sha256sum``; the zip entries carry a time stamp, so a retrained file has other bytes),
 #: ``arrays`` the :func:`arrays_digest` that retraining with the same seed on the same machine and
-#: software reproduces, ``training_data`` the digest of the rendered training sequences
+#: software reproduces, ``training_data`` the digest of the training sequences it was trained on;
+#: ``recipe`` the trainer options (``denoise-bench train aa_rnn -o KEY=VALUE``) and ``seed`` that
+#: made it, ``dataset`` the settings of the dataset folder it was trained on (its manifest's
+#: ``config``: the paper-scale set of :mod:`.dataset`, Mitsuba scenes included)
 SHIPPED = {
     2: {
-        "file": "8e3ab43761750c07d19d55d17528ecd0f086a565f83dc7c99344a5908e95507c",
-        "arrays": "ca08ce087828a7a4987dd27147c1e262dd8fbd6187641b5bb6a87a817a6a929b",
-        "training_data": "449525c67df7bd651e5f4aba91419815a99592f4dbc2d3b6f2bbcca404e86423",
+        "file": "8bb2852fff87c2f05a0f0953cc97cfbab774ae065628f2a79808e1bf3da96d0a",
+        "arrays": "4fd37c3f780ae510fd4523db7da51547ba70f5e15a5db78443414d98c92fca51",
+        "training_data": "f5676c57c9fde130b1e1d5f69654c9cd32f3375ea78290a1dbe7fbfbf28a8ce5",
+        "seed": 0,
+        "recipe": {"data": "datasets/cache/aa_rnn-data", "train_sequences": 826, "epochs": 12, "val_sequences": 64,
+                   "eval_every": 1},
+        "dataset": {"sequences": 1900, "frames": 7, "size": 64, "seed": 0, "reference_spp": 64,
+                    "mitsuba_share": 0.15, "mitsuba": ["classroom", "living-room", "sponza"]},
     },
 }
 

@@ -2,7 +2,9 @@
 
 Albedo demodulation, temporal reprojection and accumulation with motion vectors, temporal (or
 short-history spatial) luminance variance, and 5 variance-guided à-trous iterations. Degraded
-modes (README): without ``motion`` spatial only (no history), without ``depth`` no depth stop,
+modes (README): without ``motion`` the motion of static geometry from the camera where the frame
+has ``view_proj``, ``prev_view_proj`` and ``depth`` (or ``position``), else spatial only (no
+history); without ``depth`` no depth stop,
 without ``object_id`` one object. Backends:
 ``cpu`` (Numba, parallel) and ``cuda`` (``numba.cuda``).
 """
@@ -12,7 +14,7 @@ from harness import FilterSpec, hookimpl
 from .params import DECLARED, PRESETS
 from .pipeline import SVGF
 
-VERSION = "1.0"
+VERSION = "1.1"  # 1.1: without motion, the motion of static geometry from the camera (issue 32)
 
 
 def make_filter(backend: str = "cpu", **params) -> SVGF:
@@ -30,6 +32,7 @@ def register_filters():
             requires={"color", "albedo", "normal"},
             optional={"depth", "object_id", "motion", "indirect", "emission"},
             full_guides={"albedo", "normal", "depth", "object_id", "motion"},
+            motion_from_camera=True,
             temporal=True,
             backends=("cpu", "cuda"),
             params=DECLARED,

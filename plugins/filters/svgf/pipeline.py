@@ -6,7 +6,7 @@ import time
 
 import numpy as np
 
-from harness import constant_depth, kernels, load_backend, one_object, zero_motion
+from harness import camera_motion, constant_depth, kernels, load_backend, one_object, zero_motion
 
 from .params import SVGFParams
 
@@ -88,6 +88,7 @@ class SVGF:
         self._sets = None  # two frame sets: the current frame's and the history
         self._scratch = None
         self._previous = None  # index of the set holding the history, None without history
+        self._jitter = (0.0, 0.0)  # the jitter of the history's frame (in the next prev_view_proj)
         self._last_variance = None
         self.stage_ms: dict = {}
 
@@ -120,8 +121,20 @@ class SVGF:
         ops = self._ops
         h, w = frame.height, frame.width
         nsig = 2 if (p.separate_lighting and "indirect" in frame) else 1
-        if frame.meta.camera_cut or "motion" not in frame:
-            self.reset()  # without motion vectors: spatial only (no history to reproject)
+        if frame.meta.camera_cut:
+            self.reset()
+        times = {}
+        if "motion" not in frame and self._previous is not None and self._key == (nsig, h, w):
+            # without motion vectors: those of static geometry from the camera where the frame
+            # has its matrices (and depth or position), else spatial only (no history)
+            t_motion = time.perf_counter()
+            motion = camera_motion(frame, self._jitter)
+            times["camera_motion"] = (time.perf_counter() - t_motion) * 1e3
+            frame = frame.replace(motion=motion) if motion is not None else frame
+        if "motion" not in frame:
+            self.reset()
+            times = {}
+        self._jitter = tuple(float(v) for v in frame.meta.jitter)
         frame = _with_stand_ins(frame)
         index, prev, tmp = self._buffers(nsig, h, w)
         cur = self._sets[index]
@@ -129,7 +142,6 @@ class SVGF:
         prev = prev if has_prev else cur  # not read without history
         # the colour history: the accumulated colour, or the output of an à-trous iteration
         fb = "acc_sig" if p.feedback_iteration == -1 else "feedback"
-        times = {}
         ops.synchronize()
         t_start = t = time.perf_counter()
 
@@ -177,7 +189,7 @@ class SVGF:
         ops.remodulate(src, tmp["albedo"], cur["valid"], color, emission, has_emission, out)
         out = ops.download(out)
         lap("remodulate")
-        times["total"] = (time.perf_counter() - t_start) * 1e3
+        times["total"] = (time.perf_counter() - t_start) * 1e3 + times.get("camera_motion", 0.0)
         self.stage_ms = times
         self._previous = index
         self._last_variance = tmp["var"]

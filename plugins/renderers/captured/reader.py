@@ -11,10 +11,11 @@ import warnings
 
 import numpy as np
 
-from harness import CHANNELS, ExrError, read_channels
+from harness import ExrError, read_channels
 
 from . import conventions as conv
-from .sidecar import Capture, CaptureError, Source
+from . import halves as hv
+from .sidecar import Capture, CaptureError, Source, source_size
 
 #: component names tried, in order, when a source does not list them (by channel size)
 COMPONENT_ORDERS = {
@@ -86,6 +87,42 @@ class FrameReader:
             self._warn_nonfinite(channel, out[channel], t, sources[channel])
         return out
 
+    def halves(self, t: int, color: Source | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The two half-buffers of frame ``t``, (H, W, 3) float32 each in linear sRGB primaries.
+
+        Raises
+        ------
+        CaptureError
+            A half-buffer cannot be read, their sizes differ or, given the ``color`` source, the
+            colour (as stored) is not their mean; the line starts with the sidecar's
+            ``color_halves`` line.
+        """
+        first, second = self.capture.color_halves
+        where = self.capture.where(first.channel)
+        files: dict = {}
+        try:
+            raw = [self._take(files, source, t) for source in (first, second)]
+            stored = None if color is None else self._take(files, color, t)
+        except CaptureError as exc:
+            raise CaptureError(f"{where}: {exc}") from None
+        if raw[0].shape != raw[1].shape:
+            names = [self.capture.path(s, t).name for s in (first, second)]
+            raise CaptureError(f"{where}: frame {t}: the half-buffers differ in size: {raw[0].shape[1]}x"
+                               f"{raw[0].shape[0]} ({names[0]}) and {raw[1].shape[1]}x{raw[1].shape[0]} ({names[1]})")
+        if stored is not None:
+            if stored.shape != raw[0].shape:
+                raise CaptureError(f"{where}: frame {t}: the colour is {stored.shape[1]}x{stored.shape[0]}, "
+                                   f"its half-buffers {raw[0].shape[1]}x{raw[0].shape[0]}")
+            problem = hv.mean_mismatch(stored.astype(np.float32), *(h.astype(np.float32) for h in raw))
+            if problem:
+                raise CaptureError(f"{where}: frame {t}: {problem}")
+        out = []
+        for source, array in zip((first, second), raw):
+            half = self._convert("color", array, t, source)
+            self._warn_nonfinite("color", half, t, source)
+            out.append(half)
+        return out[0], out[1]
+
     def reference(self, t: int) -> np.ndarray:
         """The reference image of frame ``t``, (H, W, 3) float32 in linear sRGB primaries."""
         source = self.capture.reference
@@ -124,7 +161,7 @@ class FrameReader:
             raise CaptureError(
                 f"{path}: no layer {source.layer!r} for {what}; layers in the file: {layers_of(names)}"
             )
-        size = 3 if source.channel == "reference" else CHANNELS[source.channel][0]
+        size = source_size(source.channel)
         order = source.components or self._pick(found, size)
         if order is None or any(c not in found for c in order):
             raise CaptureError(

@@ -3,7 +3,9 @@
 A captured scene (see :func:`open_capture`) is a :class:`harness.Scene` of kind ``"captured"``
 whose ``params`` hold the resolved sidecar, the channels the capture has
 (``params["channels"]``) and a digest of every file it reads, so a changed file changes the
-scene's ``content_hash`` and misses the render cache; ``source`` is the folder.
+scene's ``content_hash`` and misses the render cache; ``source`` is the folder. A capture with
+two half-buffers of the colour (``color_halves``) serves ``color`` (their mean, or the stored
+colour checked against it) and ``variance`` (:func:`.halves.half_variance`).
 """
 
 from __future__ import annotations
@@ -14,8 +16,12 @@ import numpy as np
 
 from harness import CHANNELS, Frame, FrameMeta, Scene, read_size
 
+from .halves import half_variance, mean_of_halves
 from .reader import FrameReader
-from .sidecar import Capture, CaptureError, find_sidecar, load_sidecar
+from .sidecar import HALVES_KEY, Capture, CaptureError, find_sidecar, load_sidecar, source_label
+
+#: the channels that guide the averaging window of a variance from half-buffers
+VARIANCE_GUIDES = ("normal", "albedo", "depth")
 
 #: the scene kind of captured folders
 KIND = "captured"
@@ -25,8 +31,10 @@ def open_capture(path) -> Scene | None:
     """The captured scene of a folder (or sidecar file), or None when ``path`` has no sidecar.
 
     Checks every frame's files up front: each must exist inside the capture folder and have the
-    size of frame 0's colour; frame 0's reference (and its variance) layer must be there and its
-    normals unit length. Errors about a file the sidecar names start with the sidecar's line.
+    size of frame 0's colour (or of its first half-buffer); frame 0's reference (and its variance)
+    layer must be there, its normals unit length, its half-buffers readable and of one size, and
+    its colour, where the sidecar gives both, the mean of the half-buffers. Errors about a file
+    the sidecar names start with the sidecar's line.
 
     Raises
     ------
@@ -42,21 +50,25 @@ def open_capture(path) -> Scene | None:
     reference = capture.reference
     if reference is not None and not reference.required and not capture.path(reference, 0).is_file():
         reference = None
-    width, height = read_size(capture.path(capture.sources["color"], 0))
+    halves = capture.color_halves or ()
+    sized = sources.get("color") or halves[0]  # the colour, or its first half-buffer
+    if not capture.path(sized, 0).is_file():
+        raise CaptureError(f"{capture.where(sized.channel)}: {capture.path(sized, 0)}: missing file for frame 0 "
+                           f"({source_label(sized.channel)})")
+    width, height = read_size(capture.path(sized, 0))
     files = []
     for t in range(capture.frames):
-        for source in [*sources.values(), *([reference] if reference else [])]:
+        for source in [*sources.values(), *halves, *([reference] if reference else [])]:
             file = capture.path(source, t)
             if file in files:
                 continue
             if not file.is_file():
-                what = "the reference" if source.channel == "reference" else f"channel {source.channel!r}"
-                raise CaptureError(f"{capture.where(source.channel)}: {file}: missing file for frame {t} ({what})")
+                raise CaptureError(f"{capture.where(source.channel)}: {file}: missing file for frame {t} "
+                                   f"({source_label(source.channel)})")
             size = _size(file)
             if size != (width, height):
-                raise CaptureError(
-                    f"{file}: {size[0]}x{size[1]} pixels, but the colour of frame 0 is {width}x{height}"
-                )
+                raise CaptureError(f"{capture.where(source.channel)}: {file}: {size[0]}x{size[1]} pixels, but the "
+                                   f"colour of frame 0 is {width}x{height} ({source_label(source.channel)})")
             files.append(file)
     _check_first_frame(capture, reader, sources, reference)
     digest = hashlib.sha256()
@@ -66,7 +78,7 @@ def open_capture(path) -> Scene | None:
     params = {
         "format": "captured",
         "capture": capture.describe(),
-        "channels": sorted(sources),
+        "channels": sorted(set(sources) | ({"color", "variance"} if halves else set())),
         "references": reference is not None,
         "tasks": list(capture.tasks),
         "files_sha256": digest.hexdigest(),
@@ -75,7 +87,10 @@ def open_capture(path) -> Scene | None:
 
 
 def _check_first_frame(capture: Capture, reader: FrameReader, sources: dict, reference) -> None:
-    """Read what only a read can check, once, at open: the reference's layers and the normals of frame 0."""
+    """Read what only a read can check, once, at open: the reference's layers, the normals and the
+    half-buffers of frame 0."""
+    if capture.color_halves is not None:
+        reader.halves(0, sources.get("color"))  # its errors name the sidecar's line
     checks = []
     if reference is not None:
         checks.append(("reference", reader.reference))
@@ -153,10 +168,30 @@ class CapturedRenderer:
             )
         have = set(scene.params["channels"])
         wanted = (set(channels) & have) | {"color"}
-        sources = {c: capture.sources[c] for c in CHANNELS if c in wanted}
-        arrays = FrameReader(capture).read(frame_index, sources)
+        reader = FrameReader(capture)
+        read = set(wanted)
+        if capture.color_halves is not None and "variance" in wanted:
+            read |= set(VARIANCE_GUIDES) & have
+        sources = {c: capture.sources[c] for c in CHANNELS if c in read and c in capture.sources}
+        arrays = reader.read(frame_index, sources)
+        if capture.color_halves is not None:
+            arrays.update(self._from_halves(capture, reader, frame_index, arrays, wanted))
+        arrays = {c: arrays[c] for c in CHANNELS if c in wanted}
         meta = self._meta(capture, scene, frame_index, arrays["color"].shape)
         return Frame(arrays, meta, owner="renderer 'captured'")
+
+    @staticmethod
+    def _from_halves(capture: Capture, reader: FrameReader, t: int, arrays: dict, wanted: set) -> dict:
+        """``color`` (the stored one, checked, or the mean) and, if wanted, ``variance`` from the half-buffers."""
+        a, b = reader.halves(t, capture.sources.get("color"))
+        other = next(iter(arrays.values()), None)
+        if other is not None and other.shape[:2] != a.shape[:2]:
+            raise CaptureError(f"{capture.where(HALVES_KEY)}: frame {t}: the half-buffers are {a.shape[1]}x"
+                               f"{a.shape[0]}, the other channels {other.shape[1]}x{other.shape[0]}")
+        out = {} if "color" in arrays else {"color": mean_of_halves(a, b)}
+        if "variance" in wanted:
+            out["variance"] = half_variance(a, b, {g: arrays.get(g) for g in VARIANCE_GUIDES})
+        return out
 
     def reference(self, scene, frame_index: int, *, spp: int = 0, seed: int = 0, resolution=None) -> np.ndarray:
         """The captured reference of ``frame_index`` (``spp`` and ``seed`` are ignored)."""

@@ -9,6 +9,10 @@ A sidecar is untrusted input: a file pattern takes the frame number only (``{fra
 integer format such as ``{frame:04d}``; no attribute or item access), and every file it names
 must lie inside the capture folder once resolved, unless the environment variable
 :data:`ALLOW_ENV` is ``1``.
+
+The ``channels`` table may also hold :data:`HALVES_KEY`: two sources of the colour, each a render
+of the frame with half of its samples (``.halves`` derives the colour and the ``variance``
+channel from them).
 """
 
 from __future__ import annotations
@@ -34,6 +38,8 @@ SIDECAR_NAMES = ("capture.toml", "capture.json")
 ALLOW_ENV = "DENOISE_HARNESS_ALLOW_OUTSIDE_FILES"
 #: the format specs a file pattern's ``{frame}`` may take: integers, optionally zero-padded
 FRAME_SPEC = re.compile(r"0?[0-9]{0,3}d?")
+#: the ``channels`` key naming the two half-buffers of the colour
+HALVES_KEY = "color_halves"
 
 TOP_KEYS = frozenset({
     "format", "version", "name", "description", "preset", "frames", "first_frame", "file", "spp",
@@ -113,6 +119,11 @@ class Capture:
         Every convention, the harness's defaults filled in.
     camera : dict
         ``fov_y``/``fov_x`` (degrees), ``near``, ``far``, ``view`` (4x4 world-to-camera).
+    color_halves : tuple of two Source, or None
+        Two independent renders of each frame with half of the colour's samples each (channels
+        ``color_halves[0]`` and ``color_halves[1]``), when the sidecar names them: the colour is
+        their mean (``sources`` has ``color`` only when the sidecar also names it, to be checked
+        against the mean) and they give the ``variance`` channel.
     frame_meta : list of dict
         Per-frame metadata (``FrameMeta.to_dict()`` keys plus ``view``); empty when not given.
     tags, tasks : tuple of str
@@ -132,6 +143,7 @@ class Capture:
     reference_variance: Source | None
     conventions: dict
     camera: dict
+    color_halves: tuple | None = None
     frame_meta: list = field(default_factory=list)
     tags: tuple = ()
     tasks: tuple = ("denoise",)
@@ -150,13 +162,14 @@ class Capture:
         if os.environ.get(ALLOW_ENV, "") != "1":
             root, target = self.folder.resolve(), path.resolve()
             if root not in target.parents:
-                raise CaptureError(f"{self.where(source.channel)}: the file {name!r} of {_what(source.channel)} is "
-                                   f"outside the capture folder {self.folder} (set {ALLOW_ENV}=1 to allow it)")
+                raise CaptureError(f"{self.where(source.channel)}: the file {name!r} of "
+                                   f"{source_label(source.channel)} is outside the capture folder {self.folder} "
+                                   f"(set {ALLOW_ENV}=1 to allow it)")
         return path
 
     def where(self, key: str) -> str:
         """The sidecar and, where known, the line that declares ``key`` (``capture.toml:12``)."""
-        line = self.lines.get(key)
+        line = self.lines.get(key.split("[", 1)[0])
         return f"{self.sidecar}:{line}" if line else str(self.sidecar)
 
     def view(self, t: int) -> np.ndarray | None:
@@ -180,6 +193,7 @@ class Capture:
             "reference": source(self.reference),
             "reference_spp": self.reference_spp,
             "reference_variance": source(self.reference_variance),
+            "color_halves": None if self.color_halves is None else [source(s) for s in self.color_halves],
             "conventions": dict(sorted(self.conventions.items())),
             "camera": self.camera,
             "frame_meta": self.frame_meta,
@@ -197,8 +211,16 @@ def find_sidecar(path: Path) -> Path | None:
     return None
 
 
-def _what(channel: str) -> str:
+def source_label(channel: str) -> str:
+    """How error messages name a source's channel (``channel 'albedo'``, ``the reference``)."""
+    if channel.startswith(HALVES_KEY):
+        return f"the colour's half-buffer {channel!r}"
     return "the reference" if channel == "reference" else f"channel {channel!r}"
+
+
+def source_size(channel: str) -> int:
+    """Components of a source's channel: 3 for the reference and the colour's half-buffers."""
+    return 3 if channel == "reference" or channel.startswith(HALVES_KEY) else CHANNELS[channel][0]
 
 
 def key_lines(text: str) -> dict:
@@ -232,7 +254,12 @@ def load_sidecar(sidecar: Path) -> Capture:
         raise CaptureError(f"{where}: 'frames' must be a positive integer (the number of frames), got {frames!r}")
     first_frame = _integer(where, "first_frame", data.get("first_frame", preset.get("first_frame", 0)))
     default_file = data.get("file", preset.get("file"))
-    sources = _sources(where, data.get("channels", {}), preset["channels"], default_file)
+    declared_channels = _table(where, "channels", data, {})
+    halves = _halves(where, declared_channels.get(HALVES_KEY), default_file)
+    declared_channels = {c: e for c, e in declared_channels.items() if c != HALVES_KEY}
+    sources = _sources(where, declared_channels, preset["channels"], default_file)
+    if halves is not None:
+        sources = _with_halves(where, sources, declared_channels)
     declared = "reference" in data
     reference_entry = data.get("reference", preset.get("reference"))
     reference, reference_spp = _reference(where, reference_entry, default_file, declared)
@@ -241,8 +268,9 @@ def load_sidecar(sidecar: Path) -> Capture:
     camera = _camera(where, _table(where, "camera", data, {}))
     frame_meta = _frame_meta(where, data.get("frame", []), frames)
     _check_camera_needs(where, conventions, camera, frame_meta)
-    if "color" not in sources:
-        raise CaptureError(f"{where}: no source for the 'color' channel (a capture needs the noisy colour)")
+    if "color" not in sources and halves is None:
+        raise CaptureError(f"{where}: no source for the 'color' channel (a capture needs the noisy colour, or "
+                           f"its two half-buffers in '{HALVES_KEY}')")
     tasks = tuple(sorted(_strings(where, "tasks", data.get("tasks", ["denoise"]))))
     if not tasks or set(tasks) - set(TASKS):
         raise CaptureError(f"{where}: 'tasks' must be a non-empty subset of {list(TASKS)}, got {list(tasks)}")
@@ -261,6 +289,7 @@ def load_sidecar(sidecar: Path) -> Capture:
         reference_spp=reference_spp,
         reference_variance=reference_variance,
         conventions=conventions,
+        color_halves=halves,
         camera=camera,
         frame_meta=frame_meta,
         tags=tuple(sorted(_strings(where, "tags", data.get("tags", [])))),
@@ -336,7 +365,7 @@ def _source(where: str, channel: str, entry, default_file: str | None, required:
         raise CaptureError(f"{where}: the layer of channel {channel!r} must be a string, got {layer!r}")
     components = entry.get("components")
     if components is not None:
-        size = 3 if channel == "reference" else CHANNELS[channel][0]
+        size = source_size(channel)
         names_ok = isinstance(components, list) and all(isinstance(c, str) for c in components)
         if not names_ok or len(components) != size:
             raise CaptureError(
@@ -351,22 +380,21 @@ def _check_pattern(where: str, channel: str, file: str) -> None:
     try:
         fields = list(string.Formatter().parse(file))
     except ValueError as exc:
-        raise CaptureError(f"{where}: file pattern {file!r} of {_what(channel)} is not valid: {exc}") from None
+        raise CaptureError(f"{where}: file pattern {file!r} of {source_label(channel)} is not valid: {exc}") from None
     for _, name, spec, conversion in fields:
         if name is None:
             continue
         if name != "frame" or conversion is not None or not FRAME_SPEC.fullmatch(spec or ""):
             field_text = name + (f"!{conversion}" if conversion else "") + (f":{spec}" if spec else "")
-            raise CaptureError(f"{where}: file pattern {file!r} of {_what(channel)} may only hold {{frame}} or an "
-                               f"integer format of it such as {{frame:04d}}, not {{{field_text}}}")
+            raise CaptureError(f"{where}: file pattern {file!r} of {source_label(channel)} may only hold {{frame}} "
+                               f"or an integer format of it such as {{frame:04d}}, not {{{field_text}}}")
 
 
-def _sources(where: str, declared, preset: dict, default_file: str | None) -> dict:
-    if not isinstance(declared, dict):
-        raise CaptureError(f"{where}: 'channels' must be a table of channel = layer, got {type(declared).__name__}")
+def _sources(where: str, declared: dict, preset: dict, default_file: str | None) -> dict:
     unknown = sorted(set(declared) - set(CHANNELS))
     if unknown:
-        raise CaptureError(f"{where}: unknown channel(s) {unknown}; harness channels: {sorted(CHANNELS)}")
+        raise CaptureError(f"{where}: unknown channel(s) {unknown}; harness channels: {sorted(CHANNELS)} "
+                           f"and '{HALVES_KEY}'")
     sources = {}
     for channel in CHANNELS:
         if channel in declared:
@@ -377,6 +405,32 @@ def _sources(where: str, declared, preset: dict, default_file: str | None) -> di
         elif channel in preset:
             sources[channel] = _source(where, channel, preset[channel], default_file, required=channel == "color")
     return sources
+
+
+def _halves(where: str, entry, default_file: str | None) -> tuple | None:
+    """The two half-buffer sources of ``color_halves``: each a layer name or ``{file, layer, components}``."""
+    if entry is None:
+        return None
+    if not isinstance(entry, list) or len(entry) != 2:
+        raise CaptureError(f"{where}: '{HALVES_KEY}' must list two sources of the colour (each a layer name or "
+                           f"a table of file, layer, components), got {entry!r}")
+    halves = tuple(_source(where, f"{HALVES_KEY}[{i}]", e, default_file, required=True) for i, e in enumerate(entry))
+    if halves[0].file == halves[1].file and halves[0].layer == halves[1].layer:
+        raise CaptureError(f"{where}: the two sources of '{HALVES_KEY}' are the same layer {halves[0].layer!r} of "
+                           f"{halves[0].file!r}; they must be two independent renders")
+    return halves
+
+
+def _with_halves(where: str, sources: dict, declared: dict) -> dict:
+    """Channel sources beside ``color_halves``: the colour only where the sidecar itself names it
+    (checked against the halves' mean), no ``variance`` (the halves give it)."""
+    if "variance" in declared and declared["variance"] is not False:
+        raise CaptureError(f"{where}: give either a 'variance' channel or '{HALVES_KEY}' (which gives the "
+                           "variance), not both")
+    keep = {c: s for c, s in sources.items() if c != "variance"}
+    if "color" not in declared or declared["color"] is False:
+        keep.pop("color", None)
+    return keep
 
 
 def _reference(where: str, entry, default_file: str | None, required: bool) -> tuple[Source | None, int | None]:
