@@ -18,7 +18,7 @@ def registry():
 
 @pytest.fixture(scope="module")
 def renderer(registry):
-    return registry.get("renderer", "raster").factory()
+    return registry.get("renderer", "raster").factory(jitter=False)
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +37,29 @@ def test_spec_declares_the_gbuffer(registry):
     assert spec.references and spec.scene_kinds == {"mesh"}
     r = spec.factory(supersample=2, jitter=True)
     assert r.settings() == {"supersample": 2, "jitter": True}
+
+
+def test_serves_antialiasing_jittered_and_declares_one_input_per_seed(registry, atrium):
+    """The renderer serves the anti-aliasing task, whose filters expect jittered frames: jitter is
+    on unless asked off. Its frames do not depend on the seed, which it declares, so the planner
+    runs one seed of an AA scene instead of counting copies of one input as replicates."""
+    from harness.plan import make_plan
+    from harness.renders import RenderStore, scene_selection
+
+    spec = registry.get("renderer", "raster")
+    assert spec.tasks == {"antialias"} and spec.deterministic
+    default = spec.factory()
+    assert default.settings()["jitter"]
+    a, b = (default.render(atrium, 3, resolution=(W, H), seed=s)["color"] for s in (0, 7))
+    np.testing.assert_array_equal(a, b)
+    assert default.render(atrium, 3, resolution=(W, H)).meta.jitter != (0.0, 0.0)
+    store = RenderStore(registry)
+    specs = scene_selection(registry, store, ["aa-fence"], [], ["antialias"])
+    plan = make_plan(registry, store, specs, ["taa"], ["ssim"], spp=(1,), seeds=(0, 1, 2), frames=2,
+                     tasks=("antialias",))
+    assert {j.seed for j in plan.jobs} == {0}
+    assert plan.notes == ["scene 'aa-fence': renderer 'raster' returns the same frames for every seed: "
+                          "one seed (0) instead of 3"]
 
 
 def test_channels_dtypes_background_and_meta(renderer, atrium):
@@ -86,7 +109,7 @@ def test_normals_unit_and_facing_the_camera(renderer, atrium):
 
 def test_untextured_albedo_is_the_exact_material_value(registry):
     cornell = registry.get("scene", "cornell").factory()
-    r = registry.get("renderer", "raster").factory()
+    r = registry.get("renderer", "raster").factory(jitter=False)
     frame = r.render(cornell, 0, channels={"albedo", "object_id"}, resolution=(W, W))
     values = {tuple(v) for v in frame["albedo"][frame["object_id"] >= 0].tolist()}
     expected = {tuple(np.float32(c) for c in m.albedo) for m in cornell.materials}
@@ -224,13 +247,13 @@ def _to_object(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def test_reference_is_supersampled_colour(registry, atrium):
-    r = registry.get("renderer", "raster").factory()
+    r = registry.get("renderer", "raster").factory(jitter=False)
     color = r.render(atrium, 0, resolution=(W, H))["color"]
     ref1 = r.reference(atrium, 0, spp=1, resolution=(W, H))
     np.testing.assert_array_equal(ref1, color)
     ref = r.reference(atrium, 0, spp=16, resolution=(W, H))
     assert ref.shape == (H, W, 3) and ref.dtype == np.float32
-    ss = registry.get("renderer", "raster").factory(supersample=4).render(atrium, 0, resolution=(W, H))["color"]
+    ss = registry.get("renderer", "raster").factory(supersample=4, jitter=False).render(atrium, 0, resolution=(W, H))["color"]
     np.testing.assert_allclose(ss, ref, atol=1e-6)
     diff = np.abs(ref - color).max(axis=-1)
     assert (diff > 1e-3).mean() > 0.02  # edges and textures are anti-aliased
@@ -243,7 +266,7 @@ def test_furnace_colour_is_rho_headlight_plus_emission(registry):
     from plugins.renderers.raster.shading import HEADLIGHT
 
     furnace = registry.get("scene", "furnace").factory()
-    r = registry.get("renderer", "raster").factory()
+    r = registry.get("renderer", "raster").factory(jitter=False)
     frame = r.render(furnace, 0, channels={"normal"}, resolution=(32, 32))
     rho, le = furnace.params["rho"], furnace.params["Le"]
     color = frame["color"][..., 0]
@@ -288,13 +311,13 @@ def test_draws_from_several_threads_match_one_thread(registry, atrium):
     client drawing references) must give the images one thread gives, at changing sizes."""
     from concurrent.futures import ThreadPoolExecutor
 
-    shared = registry.get("renderer", "raster").factory()
+    shared = registry.get("renderer", "raster").factory(jitter=False)
     sizes = [(W, H), (2 * W, 2 * H), (W + 8, H + 4)]
     got = []
     for size in sizes:  # each call on a new thread: the pool is made and dropped per call
         with ThreadPoolExecutor(1) as pool:
             got.append(pool.submit(shared.render, atrium, 0, channels={"object_id"}, resolution=size).result())
-    alone = registry.get("renderer", "raster").factory()
+    alone = registry.get("renderer", "raster").factory(jitter=False)
     for size, frame in zip(sizes, got):
         want = alone.render(atrium, 0, channels={"object_id"}, resolution=size)
         np.testing.assert_array_equal(frame["object_id"], want["object_id"])

@@ -12,7 +12,7 @@ from harness import RendererSpec, hookimpl
 
 from .renderer import PROVIDES, RasterRenderer
 
-VERSION = "1.1"
+VERSION = "1.2"
 
 
 @hookimpl
@@ -25,6 +25,7 @@ def register_renderers():
             provides=PROVIDES,
             references=True,
             adaptive=False,
+            deterministic=True,  # rasterization: every seed gives the same frames
             scene_kinds={"mesh"},
             reference_spp=64,
             tasks={"antialias"},

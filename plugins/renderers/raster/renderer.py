@@ -47,10 +47,12 @@ class RasterRenderer:
         samples (box filter); G-buffer channels always come from the (jittered) pixel centre.
     jitter : bool
         Offset the projection of frame ``t`` by the Halton (2, 3) point ``(t mod 16) + 1``
-        (minus 0.5) for temporal anti-aliasing; the offset is in ``FrameMeta.jitter``.
+        (minus 0.5), as engines do for temporal anti-aliasing; the offset is in
+        ``FrameMeta.jitter``. On by default: the renderer serves the anti-aliasing task, whose
+        filters (TAA, ``aa_rnn``) expect jittered frames; ``jitter=False`` renders pixel centres.
     """
 
-    def __init__(self, supersample: int = 1, jitter: bool = False):
+    def __init__(self, supersample: int = 1, jitter: bool = True):
         if int(supersample) < 1:
             raise ValueError(f"raster: supersample must be >= 1, got {supersample}")
         self.supersample = int(supersample)
