@@ -1,7 +1,7 @@
 """The learning curve of ``aa_rnn``: held-out quality against TAA for growing training sets and
 training lengths, trained on the paper-scale dataset (``plugins/filters/aa_rnn/dataset.py``).
 
-    python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E]
+    python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E] [--length-in-name]
     python benchmarks/aa_rnn_curve.py evaluate --data DIR --out DIR [--test-limit N] [--only GLOB]
     python benchmarks/aa_rnn_curve.py report   --out DIR [--plot docs/images/aa_rnn_curve.png]
     python benchmarks/aa_rnn_curve.py versus   --run RUN_DIR [--first aa_rnn --second taa --metric ssim]
@@ -10,7 +10,9 @@ training lengths, trained on the paper-scale dataset (``plugins/filters/aa_rnn/d
 ``dataset_training.train_on_dataset`` (checkpointed: run it again to resume), for ``--epochs``
 or for the epochs nearest to ``--steps`` batches of 8, writing ``n{N}-s{S}.npz`` and its
 snapshots ``n{N}-s{S}-e{E}.npz`` (the best weights by validation L1 up to epoch E) at a quarter
-and a half of the run. ``evaluate`` scores every weights file of the folder not yet scored, and the baselines
+and a half of the run; ``--length-in-name`` puts the run's epochs R in the names
+(``n{N}-s{S}-r{R}.npz``, ``n{N}-s{S}-r{R}-e{E}.npz``), so that runs of other lengths of the same
+size and seed can share the folder. ``evaluate`` scores every weights file of the folder not yet scored, and the baselines
 (the aliased input, TAA, ``aa_rnn`` with its shipped weights) once, on
 
 * the **test split** of the dataset (every test sequence, whole, from a camera cut): SSIM (the
@@ -40,7 +42,8 @@ from common import integer, parser, run, timed_call  # noqa: E402
 
 from harness import Frame, FrameMeta, encode_srgb, load_plugins  # noqa: E402
 
-NAME = re.compile(r"^n(\d+)-s(\d+)(?:-e(\d+))?\.npz$")
+#: ``n{size}-s{seed}[-r{epochs of the run}][-e{snapshot epoch}].npz``
+NAME = re.compile(r"^n(\d+)-s(\d+)(?:-r(\d+))?(?:-e(\d+))?\.npz$")
 #: scored once: the aliased input, TAA's defaults and ``aa_rnn`` with its shipped weights
 BASELINES = ("noaa", "taa", "aa_rnn")
 LABELS = {"noaa": "`noaa`", "taa": "`taa`", "aa_rnn": "`aa_rnn`, the weights shipped when scored"}
@@ -62,7 +65,8 @@ def train(args) -> None:
                          snapshots=tuple(sorted({e for e in (epochs // 4, epochs // 2) if 0 < e < epochs})))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    path = train_on_dataset(args.data, out / f"n{args.size}-s{args.seed}.npz", seed=args.seed, config=config,
+    name = f"n{args.size}-s{args.seed}" + (f"-r{epochs}" if args.length_in_name else "")
+    path = train_on_dataset(args.data, out / f"{name}.npz", seed=args.seed, config=config,
                             until_epoch=args.until_epoch)
     print(path or "stopped early; run again to resume")
 
@@ -166,13 +170,13 @@ def evaluate(args) -> None:
 
 
 def _points(scores: dict) -> dict:
-    """``{(size, epoch or None): {seed: scores}}`` of the weights files scored."""
+    """``{(size, run epochs or None, snapshot epoch or None): {seed: scores}}`` of the weights files scored."""
     points: dict = {}
     for key, value in scores.items():
         m = NAME.match(key)
         if m:
-            size, seed, epoch = int(m.group(1)), int(m.group(2)), m.group(3)
-            points.setdefault((size, int(epoch) if epoch else None), {})[seed] = value
+            size, seed, length, epoch = int(m.group(1)), int(m.group(2)), m.group(3), m.group(4)
+            points.setdefault((size, int(length) if length else None, int(epoch) if epoch else None), {})[seed] = value
     return points
 
 
@@ -204,7 +208,8 @@ def report(args) -> None:
               f"{v['test']['ghost']:.4f} | {_bench_mean(v, 'ssim'):.4f} | "
               + " | ".join(f"{v['bench'][s]['ssim']:.4f}" for s in scenes)
               + f" | {_bench_mean(v, 'temporal_error'):.4f} | {_bench_mean(v, 'ghost'):.4f} | - |")
-    for (size, _), seeds in sorted(points.items(), key=lambda kv: (kv[0][0], kv[0][1] or 10**9)):
+    for (size, _, _), seeds in sorted(points.items(),
+                                      key=lambda kv: (kv[0][0], next(iter(kv[1].values()))["training"]["steps_run"])):
         runs = list(seeds.values())
         tr = runs[0]["training"]
         steps = tr["steps_run"]
@@ -232,9 +237,10 @@ def _plot(scores: dict, points: dict, path: Path) -> None:
             return v["test"]["ssim"] if where == "test" else _bench_mean(v, "ssim")
 
         # one line per training length: the sizes' runs of equal step budgets have different epoch
-        # counts, so their snapshots (a quarter, a half, the end) are grouped by steps (to 100)
+        # counts, so their snapshots (a quarter, a half, the end) are grouped by steps (to 100); a
+        # length that only one size reached is a lone marker
         lines: dict = {}
-        for (size, _), runs in points.items():
+        for (size, _, _), runs in points.items():
             steps = int(round(next(iter(runs.values()))["training"]["steps_run"], -2))
             lines.setdefault(steps, {})[size] = [value(r) for r in runs.values()]
         for steps, by_size in sorted(lines.items()):
@@ -247,7 +253,7 @@ def _plot(scores: dict, points: dict, path: Path) -> None:
             if label in scores:
                 ax.axhline(value(scores[label]), color="k", linestyle=style, label=LABELS[label].replace("`", ""))
         ax.set_xscale("log")
-        sizes = sorted({size for size, _ in points})
+        sizes = sorted({size for size, _, _ in points})
         ax.set_xticks(sizes, [str(size) for size in sizes])
         ax.minorticks_off()
         ax.set_xlabel("training sequences (7 frames each)")
@@ -322,6 +328,8 @@ def main(argv=None) -> int:
     t.add_argument("--layers", type=integer(1), default=2)
     t.add_argument("--val-sequences", type=integer(1), default=64)
     t.add_argument("--until-epoch", type=integer(1), default=None)
+    t.add_argument("--length-in-name", action="store_true",
+                   help="name the files n{N}-s{S}-r{epochs}[...]: runs of other lengths of one size and seed apart")
     e = sub.add_parser("evaluate")
     e.add_argument("--data", required=True)
     e.add_argument("--out", required=True)
