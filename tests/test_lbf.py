@@ -443,8 +443,8 @@ def _per_pixel_network(sig, aux, hh, m):
 @pytest.mark.parametrize("shape", [(1, 1), (1, 6), (6, 1), (2, 2), (9, 13), (17, 40)])
 def test_row_network_matches_per_pixel_bodies(shape):
     """The CPU's vectorised row kernels (features, median network, MLP) give the per-pixel
-    bodies' features and bandwidths exactly, borders, ties in the medians and extremes
-    included."""
+    bodies' features exactly and their bandwidths to float32 round-off (the sigmoid and softplus
+    use :mod:`.vecmath`), borders, ties in the medians and extremes included."""
     h, w = shape
     rng = np.random.default_rng(h * 100 + w)
     sig = rng.normal(size=(K.N_SIG, h, w)).astype(np.float32)
@@ -459,7 +459,7 @@ def test_row_network_matches_per_pixel_bodies(shape):
     CPU._features_network(sig, aux, hh, m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, got_p, got_f,
                           True, 2)
     np.testing.assert_array_equal(got_f, feats)
-    np.testing.assert_array_equal(got_p, params)
+    np.testing.assert_allclose(got_p, params, rtol=2.5e-7, atol=0)  # at most ~1 float32 ulp
 
 
 def test_median_network_is_the_median():
@@ -467,3 +467,36 @@ def test_median_network_is_the_median():
     for _ in range(2000):
         x = np.round(rng.normal(size=9), 1) if rng.random() < 0.5 else rng.normal(size=9)
         assert CPU._median9(*x) == np.sort(x)[4]
+
+
+def test_vectorised_exp_and_log1p_match_libm():
+    """:mod:`.vecmath`'s ``exp(-y)`` on [0, 708] and ``log1p(t)`` on [0, 1] (tiny ``t``, where
+    ``1 + t`` rounds, included) within a few float64 ulps of libm; ``exp`` clamps at 708."""
+    import math
+
+    from numba import njit
+
+    from plugins.filters.lbf.vecmath import EXP_CLAMP, exp_neg64, log1p64
+
+    @njit
+    def both(y, t, e, l):
+        for j in range(y.size):
+            e[j] = exp_neg64(y[j])
+        for j in range(t.size):
+            l[j] = log1p64(t[j])
+
+    rng = np.random.default_rng(3)
+    y = np.concatenate([[0.0, 1e-300, 0.5 * math.log(2), 1.0, 700.0, 708.0],
+                        rng.uniform(0, 708, 5000), rng.uniform(0, 2, 5000)])
+    t = np.concatenate([[0.0, 1e-300, 1e-17, 2.0**-53, 1e-8, math.sqrt(2) - 1, 1.0],
+                        rng.uniform(0, 1, 5000), 10.0 ** rng.uniform(-20, 0, 5005)])
+    e, l = np.empty_like(y), np.empty_like(t)
+    both(y, t, e, l)
+    exp_ref = np.array([math.exp(-v) for v in y])
+    log_ref = np.array([math.log1p(v) for v in t])
+    assert np.max(np.abs(e - exp_ref) / exp_ref) < 1e-15
+    nz = log_ref > 0
+    assert np.max(np.abs(l[nz] - log_ref[nz]) / log_ref[nz]) < 1e-15 and np.all(l[~nz] == 0.0)
+    out = np.empty(1)
+    both(np.array([1000.0]), np.array([0.5]), out, np.empty(1))
+    assert abs(out[0] / math.exp(-EXP_CLAMP) - 1.0) < 1e-15

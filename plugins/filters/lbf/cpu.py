@@ -9,9 +9,11 @@ Stages of :class:`Denoiser`:
     is filtered as 0 and +-Inf as +-float32 max (the harness repairs or rejects non-finite
     colour before a filter sees it; this keeps one bad pixel from spreading).
 ``network``
-    Per pixel: the 7x7 means (from per-row vertical sums, so no full-frame box buffer), the 36
-    secondary features (:func:`.kernels.combine_px`) and the network
-    (:func:`.kernels.mlp_px`); only the 6 bandwidths are stored.
+    Row by row: the 7x7 means (from per-row vertical sums, so no full-frame box buffer), the 36
+    secondary features (:func:`_row_features`: the arithmetic of :func:`.kernels.combine_px`,
+    bit for bit, in loops along the row that vectorise) and the network (:func:`_row_mlp`:
+    that of :func:`.kernels.mlp_px`, with :mod:`.vecmath`'s ``exp`` and ``log1p``); only the
+    6 bandwidths are stored.
 ``bilateral``
     The cross-bilateral filter over rows: float32 distances and weights
     (:func:`harness.kernels.exp_neg`), loops along the row that vectorise, column-padded planes so
@@ -35,6 +37,7 @@ from harness import kernels
 
 from . import kernels as K
 from .features import FEATURE_VAR_FLOOR, Inputs, position_stats
+from .vecmath import exp_neg64, log1p64
 
 BLOCK = 256
 #: colours above this magnitude are scaled down by a power of two where the float32 filter sums
@@ -283,7 +286,12 @@ def _row_features(sig, aux, hh, i, box, acc, feat):
 def _row_mlp(feat, mean, inv_std, w1, b1, w2, b2, i, z, hidden, a, params):
     """``params[:, i, :]``: the network of :func:`.kernels.mlp_px` on every pixel of row ``i``
     (``feat`` (36, w)), in its order of operations, with loops along the row; ``z`` (36, w),
-    ``hidden`` (10, w) and ``a`` (w) are scratch."""
+    ``hidden`` (10, w) and ``a`` (w) are scratch.
+
+    The sigmoid and softplus take ``exp(-|a|)`` and ``log1p`` from :mod:`.vecmath` (a few
+    float64 ulps from libm's), so the loops vectorise; the bandwidths agree with
+    :func:`.kernels.mlp_px` to float64 round-off, before their rounding to float32.
+    """
     nf = w1.shape[1]
     w = feat.shape[1]
     zc = K.Z_CLAMP
@@ -305,11 +313,8 @@ def _row_mlp(feat, mean, inv_std, w1, b1, w2, b2, i, z, hidden, a, params):
         hu = hidden[u]
         for j in range(w):
             x = a[j]
-            if x >= 0.0:
-                hu[j] = 1.0 / (1.0 + math.exp(-x))
-            else:
-                e = math.exp(x)
-                hu[j] = e / (1.0 + e)
+            e = exp_neg64(abs(x))
+            hu[j] = (1.0 if x >= 0.0 else e) / (1.0 + e)
     for o in range(w2.shape[0]):
         a[:w] = np.float64(b2[o])
         for u in range(w2.shape[1]):
@@ -320,7 +325,7 @@ def _row_mlp(feat, mean, inv_std, w1, b1, w2, b2, i, z, hidden, a, params):
         dst = params[o, i]
         for j in range(w):
             x = a[j]
-            dst[j] = max(x, 0.0) + math.log1p(math.exp(-abs(x)))
+            dst[j] = max(x, 0.0) + log1p64(exp_neg64(abs(x)))
 
 
 @njit(parallel=True, cache=True)
