@@ -1,7 +1,8 @@
 """Peak memory of a piece of work, measured in the process that runs it.
 
-Two measures, taken around one call of ``work`` (:func:`peak_memory`; the ``rss`` one alone,
-cheaper, with :func:`rss_mark` before the work and :func:`rss_rise` after it):
+Two measures, taken around one call of ``work`` (:func:`peak_memory`), or between the two ends of
+a :class:`MemoryWatch` where the work is not one call (the ``rss`` one alone, cheaper, with
+:func:`rss_mark` before the work and :func:`rss_rise` after it):
 
 ``traced``
     the peak of the bytes allocated through Python's allocators during the call, above what
@@ -105,6 +106,42 @@ def rss_rise(mark: float) -> float:
     return max(_status_kb("VmHWM") * 1024.0 - mark, 0.0)
 
 
+class MemoryWatch:
+    """The two measures of the module between :meth:`start` and :meth:`stop`.
+
+    Parameters
+    ----------
+    traced : bool
+        Take tracemalloc's peak too (started for the span where it is not already tracing, and
+        stopped again after it); the resident set size's rise alone otherwise.
+    """
+
+    def __init__(self, traced: bool = True):
+        self.traced = traced
+        self._mark = math.nan
+        self._start = 0
+        self._was_tracing = True
+
+    def start(self, resident: bool = True) -> None:
+        """Reset the marks; ``resident=False`` skips the resident set size (its rise is then NaN)."""
+        self._mark = rss_mark() if resident else math.nan
+        if self.traced:
+            self._was_tracing = tracemalloc.is_tracing()
+            if not self._was_tracing:
+                tracemalloc.start()
+            tracemalloc.reset_peak()
+            self._start = tracemalloc.get_traced_memory()[0]
+
+    def stop(self) -> MemoryPeak:
+        """The peaks since :meth:`start` (``traced`` is 0 when not traced)."""
+        traced = 0
+        if self.traced:
+            traced = max(tracemalloc.get_traced_memory()[1] - self._start, 0)
+            if not self._was_tracing:
+                tracemalloc.stop()
+        return MemoryPeak(traced=int(traced), rss=rss_rise(self._mark))
+
+
 def peak_memory(work: Callable[[], Any]) -> tuple[Any, MemoryPeak]:
     """Call ``work()`` once and measure its peak memory.
 
@@ -116,19 +153,13 @@ def peak_memory(work: Callable[[], Any]) -> tuple[Any, MemoryPeak]:
     """
     gc.collect()
     _trim()
-    mark = rss_mark()
-    was_tracing = tracemalloc.is_tracing()
-    if not was_tracing:
-        tracemalloc.start()
-    tracemalloc.reset_peak()
-    start = tracemalloc.get_traced_memory()[0]
+    watch = MemoryWatch()
+    watch.start()
     try:
         result = work()
-        peak = tracemalloc.get_traced_memory()[1]
     finally:
-        if not was_tracing:
-            tracemalloc.stop()
-    return result, MemoryPeak(traced=max(int(peak - start), 0), rss=rss_rise(mark))
+        peak = watch.stop()
+    return result, peak
 
 
-__all__ = ["MemoryPeak", "peak_memory", "rss_mark", "rss_rise"]
+__all__ = ["MemoryPeak", "MemoryWatch", "peak_memory", "rss_mark", "rss_rise"]

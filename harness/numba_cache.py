@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import hashlib
 import os
+import sys
+from collections.abc import Iterable
 from functools import cache
 from pathlib import Path
 
@@ -116,6 +118,67 @@ def _locator_class():
             return super().from_function(py_func, py_file)
 
     return UnitCacheLocator
+
+
+def _asks_for_cache(paths: tuple[Path, ...]) -> bool:
+    """Whether the unit's own source (its first path) defines a kernel cached on disk."""
+    root = paths[0]
+    files = sorted(root.rglob("*.py")) if root.is_dir() else [root] if root.is_file() else []
+    return any("cache=True" in f.read_text(errors="replace") for f in files)
+
+
+def uncompiled_units(objects: Iterable[object]) -> list[str]:
+    """Compile units that will compile Numba kernels when ``objects`` are first used.
+
+    Parameters
+    ----------
+    objects : iterable
+        Plugin objects (classes or functions, e.g. the specs' factories); each names the compile
+        unit of the module that defines it.
+
+    Returns
+    -------
+    list of str
+        Sorted names of the units (``filters.eaw``, ``renderers.pathtracer``, ...) whose source
+        caches kernels on disk and whose cache folder for the current source holds no compiled
+        kernel yet: a fresh install, or an edit of that unit. Empty when the user set
+        ``NUMBA_CACHE_DIR`` (Numba's own cache, which this module does not track).
+    """
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return []
+    missing = set()
+    for obj in objects:
+        module = sys.modules.get(getattr(obj, "__module__", "") or "")
+        unit = compile_unit(module.__file__) if getattr(module, "__file__", None) else None
+        if unit is None or unit[0] in missing or not _asks_for_cache(unit[1]):
+            continue
+        folder = Path(_unit_folder(*unit)[0])
+        if not folder.is_dir() or not any(folder.glob("*.nbi")):
+            missing.add(unit[0])
+    return sorted(missing)
+
+
+def compile_notice(registry, plan) -> str | None:
+    """One line naming the compile units a planned run will compile on first use, or None.
+
+    Parameters
+    ----------
+    registry : harness.plugins.Registry
+    plan : harness.plan.Plan
+        Its jobs' filters and renderers are looked up in ``registry``.
+    """
+    objects = []
+    for kind, names in (("filter", {j.filter for j in plan.jobs}), ("renderer", {j.renderer for j in plan.jobs})):
+        for name in sorted(n for n in names if n):
+            try:
+                objects.append(registry.get(kind, name).factory)
+            except KeyError:
+                continue
+    units = uncompiled_units(objects)
+    if not units:
+        return None
+    return (f"compiling the Numba kernels of {', '.join(units)} on first use (a fresh install or an edit "
+            f"of their source: minutes on 2 cores, once; later runs load them from the cache)")
 
 
 def configure_numba_cache() -> Path | None:

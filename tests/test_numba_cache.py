@@ -80,3 +80,35 @@ def test_an_edit_recompiles_its_own_plugin_only(tmp_path):
 def test_a_user_setting_is_left_alone(monkeypatch, tmp_path):
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     assert configure_numba_cache() is None
+
+
+@pytest.fixture
+def empty_cache_home(monkeypatch, tmp_path):
+    """A cache home with no compiled kernel (the unit folders' paths are recomputed for it)."""
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    numba_cache._unit_folder.cache_clear()
+    yield tmp_path / "denoise-harness" / "numba"
+    numba_cache._unit_folder.cache_clear()
+
+
+def test_a_run_names_the_units_it_will_compile(empty_cache_home, monkeypatch):
+    """A fresh install (or an edit) is announced by the units whose kernels are not cached yet:
+    only units with cached kernels (passthrough has none), and none once their folder holds one."""
+    from types import SimpleNamespace
+
+    from harness import load_plugins
+
+    registry = load_plugins()
+    plan = SimpleNamespace(jobs=[SimpleNamespace(filter=f, renderer="synthetic") for f in ("eaw", "passthrough")]
+                           + [SimpleNamespace(filter="svgf", renderer="")])
+    line = numba_cache.compile_notice(registry, plan)
+    assert line.startswith("compiling the Numba kernels of filters.eaw, filters.svgf on first use")
+    eaw = registry.get("filter", "eaw").factory
+    folder = empty_cache_home / os.path.basename(numba_cache._unit_folder(*compile_unit(
+        sys.modules[eaw.__module__].__file__))[0])
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "cpu.kernel-12.py311.nbi").write_bytes(b"")
+    assert numba_cache.uncompiled_units([eaw, registry.get("filter", "svgf").factory]) == ["filters.svgf"]
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(empty_cache_home))
+    assert numba_cache.compile_notice(registry, plan) is None  # the user's own cache: not tracked

@@ -25,6 +25,7 @@ from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import output_folder
 from harness.manifest import read_manifest
+from harness.numba_cache import compile_notice
 from harness.pareto import (
     DEFAULT_BUDGETS,
     best_within,
@@ -111,13 +112,16 @@ def cmd_run(registry, args) -> int:
         return _run(registry, args)
 
 
-def _announce(args):
+def _announce(registry, args):
     def show(plan, specs) -> None:
         estimate = plan.settings.get("estimate", {}).get("announcement")
         if estimate:
             print(f"denoise-bench run: {estimate}", file=sys.stderr)
         for note in plan.notes:
             print(f"denoise-bench run: {note}", file=sys.stderr)
+        compiling = compile_notice(registry, plan)
+        if compiling:
+            print(f"denoise-bench run: {compiling}", file=sys.stderr)
         print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
               f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
 
@@ -183,7 +187,7 @@ def _run(registry, args) -> int:
         disable=args.disable, cache_dir=args.cache_dir, use_cache=not args.no_cache, max_hours=args.max_hours,
         resume=args.resume,
         pictures=args.pictures, report_frames=args.report, save_outputs=args.save_outputs,
-        progress=_progress(args), on_plan=_announce(args), on_executor=_banner,
+        progress=_progress(args), on_plan=_announce(registry, args), on_executor=_banner,
         scene_roots=_scene_roots(args), renderer_settings=_renderer_settings(registry, args), on_note=_note,
     )
     df, store, plan = outcome.table, outcome.store, outcome.plan

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import time
-import tracemalloc
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -16,7 +15,7 @@ import numpy as np
 
 from harness.buffers import NonFiniteError, check_filter_output
 from harness.errors import short_error
-from harness.memory import rss_mark, rss_rise
+from harness.memory import MemoryWatch
 from harness.stress.cases import Sequence, StressCase
 from harness.stress.properties import Failure, Monitor
 
@@ -184,9 +183,9 @@ def _why(exc: BaseException) -> str:
 
 class _PeakMemory:
     """The largest growth of the process's memory during a filter call, MiB: the rise of the
-    resident set size (:func:`harness.memory.rss_mark`) and, when ``traced`` (the memory-bound
-    cases), the peak of the bytes :mod:`tracemalloc` saw allocated (NumPy's arrays among them),
-    whichever is larger; NaN where neither is measured.
+    resident set size and, when ``traced`` (the memory-bound cases), the peak of the bytes
+    :mod:`tracemalloc` saw allocated (NumPy's arrays among them), whichever is larger
+    (:class:`harness.memory.MemoryWatch`); NaN where neither is measured.
 
     Building the case's frames is outside the calls, so it does not count. The traced peak keeps
     the bound where the resident size's high-water mark cannot be reset (a container without
@@ -197,28 +196,19 @@ class _PeakMemory:
         self.peak = 0.0
         self.known = True
         self.traced = traced
-        self.mark = math.nan
-        self.start = 0
-        self.was_tracing = False
+        self.watch = MemoryWatch(traced=traced)
 
     def before_call(self) -> None:
-        self.mark = rss_mark() if self.known else math.nan
-        if self.traced:
-            self.was_tracing = tracemalloc.is_tracing()
-            if not self.was_tracing:
-                tracemalloc.start()
-            tracemalloc.reset_peak()
-            self.start = tracemalloc.get_traced_memory()[0]
+        self.watch.start(resident=self.known)
 
     def after_call(self) -> float:
         """Growth during the call just made, MiB (and keep the largest)."""
-        growth = rss_rise(self.mark) / 2**20 if self.known else math.nan
+        measured = self.watch.stop()
+        growth = measured.rss / 2**20
         if math.isnan(growth):
             self.known = False
         if self.traced:
-            traced = max(tracemalloc.get_traced_memory()[1] - self.start, 0) / 2**20
-            if not self.was_tracing:
-                tracemalloc.stop()
+            traced = measured.traced / 2**20
             growth = traced if math.isnan(growth) else max(growth, traced)
         if not math.isnan(growth):
             self.peak = max(self.peak, growth)

@@ -143,8 +143,8 @@ def _loads_scene_files(item, reg) -> bool:
     tier alone): seconds to tens of seconds each, so the full tier's."""
     spec = reg.get(item.kind, item.name)
     if item.kind == "scene":
-        return getattr(spec, "tier", "procedural") == "real"
-    return item.kind == "renderer" and set(getattr(spec, "scene_tiers", ())) <= {"real"}
+        return spec.tier == "real"
+    return item.kind == "renderer" and set(spec.scene_tiers) <= {"real"}
 
 
 def parametrize_with_checks(filters=None, metrics=None, renderers=None, scenes=None, cuda_checks: bool = True,
