@@ -171,7 +171,7 @@ def fastest_cpu_variant() -> tuple[str, str]:
     try:
         return choose("llvm"), "the fastest CPU variant"
     except VariantError as exc:
-        return "scalar_rgb", f"llvm_ad_rgb unusable here: {str(exc).split(': ', 1)[-1]}"
+        return "scalar_rgb", str(exc).removeprefix("renderer 'mitsuba': ")
 
 
 def mitsuba_variant(args) -> str:
@@ -293,7 +293,8 @@ def report(rows: list[dict], args) -> None:
                   f"{min(per_cpu):.2f}-{max(per_cpu):.2f})")
 
 
-def main(argv=None) -> int:
+def arguments(argv=None):
+    """The command line's options (see the module docstring)."""
     ap = parser(__doc__)
     ap.add_argument("--width", type=integer(1), default=1280)
     ap.add_argument("--height", type=integer(1), default=720)
@@ -315,7 +316,11 @@ def main(argv=None) -> int:
                          "DRJIT_LIBLLVM_PATH naming a working libLLVM), else scalar_rgb")
     ap.add_argument("--threads", type=integer(1, numba.config.NUMBA_NUM_THREADS), nargs="+", default=None,
                     help="time our path tracer with each of these Numba thread counts")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = arguments(argv)
     registry = load_plugins()
     with baseline(args.baseline) if args.baseline is not None else nullcontext() as old:
         if args.ratios:
