@@ -45,8 +45,9 @@ warm-up, as Mitsuba builds its own when loading). Then, in the same process, Mit
 (its fastest CPU variant by default, ``--mitsuba-variant fastest``: ``llvm_ad_rgb`` where an LLVM
 works, which needs ``DRJIT_LIBLLVM_PATH`` naming a working libLLVM, else ``scalar_rgb``; the output
 says which and why; Dr.Jit's threads set to Numba's count; ``path`` integrator, same resolution,
-spp, ``max_depth`` and Russian roulette depth) renders ``../shared/scenes/classroom/scene.xml`` with its sun and sky as Mitsuba
-3's ``sunsky`` of the parameters the harness read (as in ``--ratios``). The third-party scene folder
+spp, ``max_depth`` and Russian roulette depth) renders ``../shared/scenes/classroom/scene.xml``
+with its sun and sky as Mitsuba 3's ``sunsky`` of the parameters the harness read (as in
+``--ratios``). The third-party scene folder
 is found next to the project root and the benchmark skips it, with a message, when it is absent.
 """
 
