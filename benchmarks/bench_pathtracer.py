@@ -7,7 +7,7 @@ Usage::
                                           [--baseline REV]
     python benchmarks/bench_pathtracer.py --ratios [--width 160 --height 90 --spp 256 --max-depth 8]
                                           [--mitsuba-spp N] [--baseline REV] [--relmse]
-                                          [--mitsuba-variant llvm_ad_rgb]
+                                          [--mitsuba-variant fastest|llvm_ad_rgb|scalar_rgb]
     python benchmarks/bench_pathtracer.py --threads 1 2 --no-mitsuba [--scenes classroom]
 
 ``--baseline REV``: the path tracer and the Mitsuba loader as they were at git revision REV
@@ -42,9 +42,12 @@ For each scene: paths per second and milliseconds per ``spp``-sample frame (medi
 shared machine). A timed frame is a complete render:
 primary rays, first hits and the path samples (the BVH is built once per scene, during the
 warm-up, as Mitsuba builds its own when loading). Then, in the same process, Mitsuba 3
-(``scalar_rgb`` variant, ``path`` integrator, same resolution, spp, ``max_depth`` and Russian
-roulette depth) renders ``../shared/scenes/classroom/scene.xml`` with its sun and sky as Mitsuba
-3's ``sunsky`` of the parameters the harness read (as in ``--ratios``). The third-party scene folder
+(its fastest CPU variant by default, ``--mitsuba-variant fastest``: ``llvm_ad_rgb`` where an LLVM
+works, which needs ``DRJIT_LIBLLVM_PATH`` naming a working libLLVM, else ``scalar_rgb``; the output
+says which and why; Dr.Jit's threads set to Numba's count; ``path`` integrator, same resolution,
+spp, ``max_depth`` and Russian roulette depth) renders ``../shared/scenes/classroom/scene.xml``
+with its sun and sky as Mitsuba 3's ``sunsky`` of the parameters the harness read (as in
+``--ratios``). The third-party scene folder
 is found next to the project root and the benchmark skips it, with a message, when it is absent.
 """
 
@@ -161,12 +164,41 @@ def mitsuba_scene(folder: Path, scene, args, tmp: Path):
     raise RuntimeError("could not load the scene into Mitsuba 3")
 
 
+def fastest_cpu_variant() -> tuple[str, str]:
+    """(variant, why): ``llvm_ad_rgb`` where it renders here (its probe in a subprocess:
+    ``plugins.renderers.mitsuba.variants``), else ``scalar_rgb`` and the reason."""
+    from plugins.renderers.mitsuba.variants import VariantError, choose
+
+    try:
+        return choose("llvm"), "the fastest CPU variant"
+    except VariantError as exc:
+        return "scalar_rgb", str(exc).removeprefix("renderer 'mitsuba': ")
+
+
+def mitsuba_variant(args) -> str:
+    """The Mitsuba 3 variant of ``args.mitsuba_variant`` (``fastest``: :func:`fastest_cpu_variant`),
+    printed once with the reason."""
+    requested = getattr(args, "mitsuba_variant", "fastest")
+    if requested != "fastest":
+        args._variant = requested
+        return requested
+    if getattr(args, "_variant", None) is None:
+        args._variant, why = fastest_cpu_variant()
+        print(f"Mitsuba 3 variant: {args._variant} ({why})", flush=True)
+    return args._variant
+
+
 def mitsuba_frame(folder: Path, scene, args, tmp: Path, spp: int | None = None, seed: int = 0):
-    """A function rendering one frame of the scene with Mitsuba 3 (``args.mitsuba_variant``, default
-    ``scalar_rgb``; returns the image); ``spp`` samples per pixel (default ``args.spp``)."""
+    """A function rendering one frame of the scene with Mitsuba 3 (:func:`mitsuba_variant`; an LLVM
+    variant with Dr.Jit's threads set to Numba's count; returns the image); ``spp`` samples per
+    pixel (default ``args.spp``)."""
     import mitsuba as mi
 
-    mi.set_variant(getattr(args, "mitsuba_variant", "scalar_rgb"))
+    mi.set_variant(mitsuba_variant(args))
+    if mi.variant().startswith("llvm"):
+        import drjit as dr
+
+        dr.set_thread_count(numba.get_num_threads())
     mscene = mitsuba_scene(folder, scene, args, tmp)
     spp = spp or args.spp
     return lambda: np.asarray(mi.render(mscene, spp=spp, seed=seed), np.float64)[..., :3]
@@ -231,8 +263,10 @@ def ratios(registry, args, old=None) -> None:
 def report(rows: list[dict], args) -> None:
     paths = args.width * args.height * args.spp
     threads = args.threads or numba.get_num_threads()
+    variant = f", Mitsuba 3 {args._variant}" if getattr(args, "_variant", None) else ""
     print(f"\n{args.width}x{args.height}, {args.spp} spp, max_depth {args.max_depth}, rr_depth {args.rr_depth}, "
-          f"{os.cpu_count()} CPUs, {threads} Numba threads; median [min-max] of {args.repeats}")
+          f"{os.cpu_count()} CPUs, {threads} Numba threads{variant}; median [min-max] of {args.repeats}; "
+          f"load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     print(f"{'renderer':<12} {'scene':<11} {'ms/frame':>22} {'Mpaths/s':>9} {'CPU ms':>9} {'Mpaths/CPU-s':>13}")
     for r in rows:
         wall, cpu = statistics.median(r["wall"]), statistics.median(r["cpu"])
@@ -260,7 +294,8 @@ def report(rows: list[dict], args) -> None:
                   f"{min(per_cpu):.2f}-{max(per_cpu):.2f})")
 
 
-def main(argv=None) -> int:
+def arguments(argv=None):
+    """The command line's options (see the module docstring)."""
     ap = parser(__doc__)
     ap.add_argument("--width", type=integer(1), default=1280)
     ap.add_argument("--height", type=integer(1), default=720)
@@ -277,11 +312,16 @@ def main(argv=None) -> int:
     ap.add_argument("--relmse", action="store_true",
                     help="with --ratios: also relMSE against Mitsuba 3's seed-0 image of the harness's pixel-area "
                          "and pixel-centre references and of Mitsuba 3's seed-1 image (its seed-to-seed noise)")
-    ap.add_argument("--mitsuba-variant", default="scalar_rgb",
-                    help="Mitsuba 3 variant (llvm_ad_rgb needs DRJIT_LIBLLVM_PATH to a working libLLVM)")
+    ap.add_argument("--mitsuba-variant", default="fastest",
+                    help="Mitsuba 3 variant; fastest (default): llvm_ad_rgb where it works (it needs "
+                         "DRJIT_LIBLLVM_PATH naming a working libLLVM), else scalar_rgb")
     ap.add_argument("--threads", type=integer(1, numba.config.NUMBA_NUM_THREADS), nargs="+", default=None,
                     help="time our path tracer with each of these Numba thread counts")
-    args = ap.parse_args(argv)
+    return ap.parse_args(argv)
+
+
+def main(argv=None) -> int:
+    args = arguments(argv)
     registry = load_plugins()
     with baseline(args.baseline) if args.baseline is not None else nullcontext() as old:
         if args.ratios:

@@ -416,3 +416,87 @@ def test_output_does_not_depend_on_the_numba_cache(tmp_path):
                            check=True).stdout.strip() for _ in range(2)]
     assert any(tmp_path.rglob("*.nbi")), "the first run should have written the cache"
     assert runs[0] == runs[1]
+
+
+
+def _per_pixel_network(sig, aux, hh, m):
+    """The network stage pixel by pixel with the shared bodies (box7, combine, mlp): the CUDA
+    backend's arithmetic, which the CPU's row kernels must reproduce bit for bit."""
+    from numba import njit
+
+    box7, combine, mlp = (njit(cache=False)(f) for f in (K.box7_px, K.combine_px, K.mlp_px))
+    h, w = sig.shape[1:]
+    params = np.empty((K.N_OUT, h, w), np.float32)
+    feats = np.empty((h, w, K.N_FEATURES), np.float32)
+    col7, med, feat = np.empty(K.N_BOX7), np.empty(9), np.empty(K.N_FEATURES)
+    z, hidden, out = np.empty(K.N_FEATURES), np.empty(K.N_HIDDEN), np.empty(K.N_OUT)
+    for i in range(h):
+        for j in range(w):
+            box7(i, j, sig, aux, col7)
+            combine(i, j, sig, aux, hh, col7, med, feat)
+            feats[i, j] = feat
+            mlp(feat, m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, z, hidden, out)
+            params[:, i, j] = out
+    return feats, params
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 6), (6, 1), (2, 2), (9, 13), (17, 40)])
+def test_row_network_matches_per_pixel_bodies(shape):
+    """The CPU's vectorised row kernels (features, median network, MLP) give the per-pixel
+    bodies' features exactly and their bandwidths to float32 round-off (the sigmoid and softplus
+    use :mod:`.vecmath`), borders, ties in the medians and extremes included."""
+    h, w = shape
+    rng = np.random.default_rng(h * 100 + w)
+    sig = rng.normal(size=(K.N_SIG, h, w)).astype(np.float32)
+    sig[:, rng.random((h, w)) < 0.2] = 0.0  # ties
+    sig[3, 0, 0] = K.FEATURE_LIMIT
+    aux = rng.uniform(0, 2, (h, w, 3)).astype(np.float32)
+    hh = np.round(rng.uniform(0, 2, (h, w, 5)), 1).astype(np.float32)  # many ties
+    m = load_weights()
+    feats, params = _per_pixel_network(sig, aux, hh, m)
+    got_p = np.empty_like(params)
+    got_f = np.empty_like(feats)
+    CPU._features_network(sig, aux, hh, m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, got_p, got_f,
+                          True, 2)
+    np.testing.assert_array_equal(got_f, feats)
+    np.testing.assert_allclose(got_p, params, rtol=2.5e-7, atol=0)  # at most ~1 float32 ulp
+
+
+def test_median_network_is_the_median():
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        x = np.round(rng.normal(size=9), 1) if rng.random() < 0.5 else rng.normal(size=9)
+        assert CPU._median9(*x) == np.sort(x)[4]
+
+
+def test_vectorised_exp_and_log1p_match_libm():
+    """:mod:`.vecmath`'s ``exp(-y)`` on [0, 708] and ``log1p(t)`` on [0, 1] (tiny ``t``, where
+    ``1 + t`` rounds, included) within a few float64 ulps of libm; ``exp`` clamps at 708."""
+    import math
+
+    from numba import njit
+
+    from plugins.filters.lbf.vecmath import EXP_CLAMP, exp_neg64, log1p64
+
+    @njit
+    def both(y, t, e, l):
+        for j in range(y.size):
+            e[j] = exp_neg64(y[j])
+        for j in range(t.size):
+            l[j] = log1p64(t[j])
+
+    rng = np.random.default_rng(3)
+    y = np.concatenate([[0.0, 1e-300, 0.5 * math.log(2), 1.0, 700.0, 708.0],
+                        rng.uniform(0, 708, 5000), rng.uniform(0, 2, 5000)])
+    t = np.concatenate([[0.0, 1e-300, 1e-17, 2.0**-53, 1e-8, math.sqrt(2) - 1, 1.0],
+                        rng.uniform(0, 1, 5000), 10.0 ** rng.uniform(-20, 0, 5005)])
+    e, l = np.empty_like(y), np.empty_like(t)
+    both(y, t, e, l)
+    exp_ref = np.array([math.exp(-v) for v in y])
+    log_ref = np.array([math.log1p(v) for v in t])
+    assert np.max(np.abs(e - exp_ref) / exp_ref) < 1e-15
+    nz = log_ref > 0
+    assert np.max(np.abs(l[nz] - log_ref[nz]) / log_ref[nz]) < 1e-15 and np.all(l[~nz] == 0.0)
+    out = np.empty(1)
+    both(np.array([1000.0]), np.array([0.5]), out, np.empty(1))
+    assert abs(out[0] / math.exp(-EXP_CLAMP) - 1.0) < 1e-15

@@ -9,9 +9,11 @@ Stages of :class:`Denoiser`:
     is filtered as 0 and +-Inf as +-float32 max (the harness repairs or rejects non-finite
     colour before a filter sees it; this keeps one bad pixel from spreading).
 ``network``
-    Per pixel: the 7x7 means (from per-row vertical sums, so no full-frame box buffer), the 36
-    secondary features (:func:`.kernels.combine_px`) and the network
-    (:func:`.kernels.mlp_px`); only the 6 bandwidths are stored.
+    Row by row: the 7x7 means (from per-row vertical sums, so no full-frame box buffer), the 36
+    secondary features (:func:`_row_features`: the arithmetic of :func:`.kernels.combine_px`,
+    bit for bit, in loops along the row that vectorise) and the network (:func:`_row_mlp`:
+    that of :func:`.kernels.mlp_px`, with :mod:`.vecmath`'s ``exp`` and ``log1p``); only the
+    6 bandwidths are stored.
 ``bilateral``
     The cross-bilateral filter over rows: float32 distances and weights
     (:func:`harness.kernels.exp_neg`), loops along the row that vectorise, column-padded planes so
@@ -35,6 +37,7 @@ from harness import kernels
 
 from . import kernels as K
 from .features import FEATURE_VAR_FLOOR, Inputs, position_stats
+from .vecmath import exp_neg64, log1p64
 
 BLOCK = 256
 #: colours above this magnitude are scaled down by a power of two where the float32 filter sums
@@ -46,9 +49,7 @@ _FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 _signals_px = njit(cache=True)(K.signals_px)
 _haar_px = njit(cache=True)(K.haar_px)
-_box7_px = njit(cache=True)(K.box7_px)
 _combine_px = njit(cache=True)(K.combine_px)
-_mlp_px = njit(cache=True)(K.mlp_px)
 _color_rows_px = njit(cache=True)(K.color_rows_px)
 _variance_estimate_px = njit(cache=True)(K.variance_estimate_px)
 _clean_variance = njit(cache=True)(K.clean_variance)
@@ -146,6 +147,187 @@ def _horizontal7(v, box):
             dst[j] = acc
 
 
+@njit(cache=True, error_model="numpy")
+def _tap(v, c, s1, s2, md):
+    x = np.float64(v)
+    return s1 + x, s2 + x * x, md + abs(x - c)
+
+
+@njit(cache=True, error_model="numpy")
+def _taps9(rm, r0, rp, j, c):
+    """Sum, sum of squares and absolute deviation from ``c`` of the 3x3 block at column ``j``
+    (rows ``rm, r0, rp``), accumulated in the order of :func:`.kernels.combine_px`."""
+    s1 = 0.0
+    s2 = 0.0
+    md = 0.0
+    s1, s2, md = _tap(rm[j - 1], c, s1, s2, md)
+    s1, s2, md = _tap(rm[j], c, s1, s2, md)
+    s1, s2, md = _tap(rm[j + 1], c, s1, s2, md)
+    s1, s2, md = _tap(r0[j - 1], c, s1, s2, md)
+    s1, s2, md = _tap(r0[j], c, s1, s2, md)
+    s1, s2, md = _tap(r0[j + 1], c, s1, s2, md)
+    s1, s2, md = _tap(rp[j - 1], c, s1, s2, md)
+    s1, s2, md = _tap(rp[j], c, s1, s2, md)
+    s1, s2, md = _tap(rp[j + 1], c, s1, s2, md)
+    return s1, s2, md
+
+
+@njit(cache=True, error_model="numpy")
+def _sort2(a, b):
+    return min(a, b), max(a, b)
+
+
+@njit(cache=True, error_model="numpy")
+def _median9(x0, x1, x2, x3, x4, x5, x6, x7, x8):
+    """The 5th smallest of nine values (no NaN), by a min/max network: branch-free, so a loop
+    over pixels vectorises; the same value as sorting."""
+    x1, x2 = _sort2(x1, x2)
+    x4, x5 = _sort2(x4, x5)
+    x7, x8 = _sort2(x7, x8)
+    x0, x1 = _sort2(x0, x1)
+    x3, x4 = _sort2(x3, x4)
+    x6, x7 = _sort2(x6, x7)
+    x1, x2 = _sort2(x1, x2)
+    x4, x5 = _sort2(x4, x5)
+    x7, x8 = _sort2(x7, x8)
+    # rows sorted; the median is the median of (max of minima, median of medians, min of maxima)
+    lo = max(max(x0, x3), x6)
+    hi = min(min(x2, x5), x8)
+    x4, x7 = _sort2(x4, x7)
+    x1, x4 = _sort2(x1, x4)
+    x4, x7 = _sort2(x4, x7)
+    lo, x4 = _sort2(lo, x4)
+    x4, hi = _sort2(x4, hi)
+    lo, x4 = _sort2(lo, x4)
+    return x4
+
+
+@njit(cache=True, error_model="numpy")
+def _row_features(sig, aux, hh, i, box, acc, feat):
+    """``feat[:, j]``: the 36 features of the pixels ``(i, 1 .. w - 2)`` of row ``i``.
+
+    The arithmetic of :func:`.kernels.combine_px` in its order (so the values are identical),
+    with loops along the row that vectorise; the border columns 0 and ``w - 1`` (clamped
+    windows) are left to the caller. ``box`` holds the 7x7 sums of :func:`_horizontal7`;
+    ``acc`` (6, w) is scratch.
+    """
+    h = sig.shape[1]
+    w = sig.shape[2]
+    im = max(i - 1, 0)
+    ip = min(i + 1, h - 1)
+    v7 = acc[0]
+    v3 = acc[1]
+    mad = acc[2]
+    grad = acc[3]
+    sd7 = acc[4]
+    for g in range(5):
+        c0 = 3 * g
+        c1 = 13 if g == 4 else 3 * g + 3
+        n = c1 - c0
+        v7[:] = 0.0
+        v3[:] = 0.0
+        mad[:] = 0.0
+        grad[:] = 0.0
+        for ch in range(c0, c1):
+            b1 = box[ch]
+            b2 = box[K.N_SIG + ch]
+            rm = sig[ch, im]
+            r0 = sig[ch, i]
+            rp = sig[ch, ip]
+            for j in range(1, w - 1):
+                m = b1[j] / 49.0
+                v7[j] += max(b2[j] / 49.0 - m * m, 0.0)
+                centre = np.float64(r0[j])
+                s1, s2, md = _taps9(rm, r0, rp, j, centre)
+                mad[j] += md
+                m = s1 / 9.0
+                v3[j] += max(s2 / 9.0 - m * m, 0.0)
+                gx = 0.5 * (np.float64(r0[j + 1]) - np.float64(r0[j - 1]))
+                gy = 0.5 * (np.float64(rp[j]) - np.float64(rm[j]))
+                grad[j] += gx * gx + gy * gy
+        f0 = feat[g]
+        f5 = feat[5 + g]
+        f10 = feat[10 + g]
+        f15 = feat[15 + g]
+        f20 = feat[20 + g]
+        hm = hh[im, :, g]
+        h0 = hh[i, :, g]
+        hp = hh[ip, :, g]
+        for j in range(1, w - 1):
+            f0[j] = math.sqrt(v7[j] / n)
+            f5[j] = math.sqrt(v3[j] / n)
+            f10[j] = mad[j] / (9.0 * n)
+            f15[j] = math.sqrt(grad[j])
+            f20[j] = _median9(np.float64(hm[j - 1]), np.float64(hm[j]), np.float64(hm[j + 1]),
+                              np.float64(h0[j - 1]), np.float64(h0[j]), np.float64(h0[j + 1]),
+                              np.float64(hp[j - 1]), np.float64(hp[j]), np.float64(hp[j + 1])
+                              ) / K.HAAR_MAD
+        if g == 0:
+            for j in range(1, w - 1):
+                sd7[j] = math.sqrt(v7[j] / n)
+    for j in range(1, w - 1):
+        feat[25, j] = (box[0, j] / 49.0 + box[1, j] / 49.0 + box[2, j] / 49.0) / 3.0
+        feat[26, j] = (box[9, j] / 49.0 + box[10, j] / 49.0 + box[11, j] / 49.0) / 3.0
+        feat[27, j] = box[12, j] / 49.0
+        feat[28, j] = (np.float64(sig[0, i, j]) + np.float64(sig[1, i, j])
+                       + np.float64(sig[2, i, j])) / 3.0
+        feat[29, j] = (np.float64(sig[9, i, j]) + np.float64(sig[10, i, j])
+                       + np.float64(sig[11, i, j])) / 3.0
+        feat[30, j] = sig[12, i, j]
+        s = np.float64(aux[i, j, 0])
+        feat[31, j] = s
+        feat[32, j] = box[2 * K.N_SIG, j] / 49.0
+        feat[33, j] = s / (sd7[j] + 1e-3)
+        feat[34, j] = aux[i, j, 2]
+        feat[35, j] = box[2 * K.N_SIG + 1, j] / 49.0
+
+
+@njit(cache=True, error_model="numpy")
+def _row_mlp(feat, mean, inv_std, w1, b1, w2, b2, i, z, hidden, a, params):
+    """``params[:, i, :]``: the network of :func:`.kernels.mlp_px` on every pixel of row ``i``
+    (``feat`` (36, w)), in its order of operations, with loops along the row; ``z`` (36, w),
+    ``hidden`` (10, w) and ``a`` (w) are scratch.
+
+    The sigmoid and softplus take ``exp(-|a|)`` and ``log1p`` from :mod:`.vecmath` (a few
+    float64 ulps from libm's), so the loops vectorise; the bandwidths agree with
+    :func:`.kernels.mlp_px` to float64 round-off, before their rounding to float32.
+    """
+    nf = w1.shape[1]
+    w = feat.shape[1]
+    zc = K.Z_CLAMP
+    for f in range(nf):
+        mu = np.float64(mean[f])
+        s = np.float64(inv_std[f])
+        src = feat[f]
+        dst = z[f]
+        for j in range(w):
+            x = (src[j] - mu) * s
+            dst[j] = min(max(x, -zc), zc) if x == x else 0.0
+    for u in range(w1.shape[0]):
+        a[:w] = np.float64(b1[u])
+        for f in range(nf):
+            c = np.float64(w1[u, f])
+            src = z[f]
+            for j in range(w):
+                a[j] += c * src[j]
+        hu = hidden[u]
+        for j in range(w):
+            x = a[j]
+            e = exp_neg64(abs(x))
+            hu[j] = (1.0 if x >= 0.0 else e) / (1.0 + e)
+    for o in range(w2.shape[0]):
+        a[:w] = np.float64(b2[o])
+        for u in range(w2.shape[1]):
+            c = np.float64(w2[o, u])
+            src = hidden[u]
+            for j in range(w):
+                a[j] += c * src[j]
+        dst = params[o, i]
+        for j in range(w):
+            x = a[j]
+            dst[j] = max(x, 0.0) + log1p64(exp_neg64(abs(x)))
+
+
 @njit(parallel=True, cache=True)
 def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_out, keep, slots):
     h = sig.shape[1]
@@ -155,23 +337,27 @@ def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_
         box = np.empty((K.N_BOX7, w))
         col7 = np.empty(K.N_BOX7)
         med = np.empty(9)
-        feat = np.empty(K.N_FEATURES)
-        z = np.empty(K.N_FEATURES)
-        hidden = np.empty(K.N_HIDDEN)
-        out = np.empty(K.N_OUT)
+        feat = np.empty((K.N_FEATURES, w))
+        acc = np.empty((5, w))
+        px = np.empty(K.N_FEATURES)
+        z = np.empty((K.N_FEATURES, w))
+        hidden = np.empty((K.N_HIDDEN, w))
+        a = np.empty(w)
         for i in range(s, h, slots):
             _vertical7(sig, aux, i, v)
             _horizontal7(v, box)
-            for j in range(w):
+            _row_features(sig, aux, hh, i, box, acc, feat)
+            # the border columns (clamped windows): the per-pixel body
+            for j in (0, w - 1):
                 for ch in range(K.N_BOX7):
                     col7[ch] = box[ch, j] / 49.0
-                _combine_px(i, j, sig, aux, hh, col7, med, feat)
-                if keep:
-                    for f in range(K.N_FEATURES):
-                        feat_out[i, j, f] = feat[f]
-                _mlp_px(feat, mean, inv_std, w1, b1, w2, b2, z, hidden, out)
-                for o in range(K.N_OUT):
-                    params[o, i, j] = out[o]
+                _combine_px(i, j, sig, aux, hh, col7, med, px)
+                feat[:, j] = px
+            if keep:
+                for f in range(K.N_FEATURES):
+                    for j in range(w):
+                        feat_out[i, j, f] = feat[f, j]
+            _row_mlp(feat, mean, inv_std, w1, b1, w2, b2, i, z, hidden, a, params)
 
 
 @njit(cache=True)

@@ -29,7 +29,7 @@ from numba import njit, prange
 
 from harness import kernels
 
-BLOCK = 256
+BLOCK = 512
 #: taps of a row summed together in one inner loop (fewer stores to the accumulators)
 GROUP = 4
 
