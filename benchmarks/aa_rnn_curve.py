@@ -1,7 +1,8 @@
 """The learning curve of ``aa_rnn``: held-out quality against TAA for growing training sets and
 training lengths, trained on the paper-scale dataset (``plugins/filters/aa_rnn/dataset.py``).
 
-    python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E] [--length-in-name]
+    python benchmarks/aa_rnn_curve.py train    --data DIR --out DIR --size N --seed S [--steps 6000 | --epochs E]
+                                               [--length-in-name]
     python benchmarks/aa_rnn_curve.py evaluate --data DIR --out DIR [--test-limit N] [--only GLOB]
     python benchmarks/aa_rnn_curve.py report   --out DIR [--plot docs/images/aa_rnn_curve.png]
     python benchmarks/aa_rnn_curve.py versus   --run RUN_DIR [--first aa_rnn --second taa --metric ssim]
@@ -12,8 +13,8 @@ or for the epochs nearest to ``--steps`` batches of 8, writing ``n{N}-s{S}.npz``
 snapshots ``n{N}-s{S}-e{E}.npz`` (the best weights by validation L1 up to epoch E) at a quarter
 and a half of the run; ``--length-in-name`` puts the run's epochs R in the names
 (``n{N}-s{S}-r{R}.npz``, ``n{N}-s{S}-r{R}-e{E}.npz``), so that runs of other lengths of the same
-size and seed can share the folder. ``evaluate`` scores every weights file of the folder not yet scored, and the baselines
-(the aliased input, TAA, ``aa_rnn`` with its shipped weights) once, on
+size and seed can share the folder. ``evaluate`` scores every weights file of the folder not yet
+scored, and the baselines (the aliased input, TAA, ``aa_rnn`` with its shipped weights) once, on
 
 * the **test split** of the dataset (every test sequence, whole, from a camera cut): SSIM (the
   harness's ``ssim``), ``temporal_error`` and the ghosting measure of ``antialias.py`` (mean
