@@ -13,7 +13,7 @@ from harness import FilterSpec, Param, hookimpl
 from .filter import BACKENDS, AARNNFilter
 from .weights import DEFAULT_LAYERS
 
-VERSION = "1.0"
+VERSION = "1.1"
 PARAMS = {
     "layers": Param(DEFAULT_LAYERS, min=1, max=16, doc="hidden 3x3x32 conv + ReLU layers (shipped: 2)"),
     "weights": Param(None, type="str", doc="a weights file; null for the shipped weights of `layers`"),
@@ -25,7 +25,7 @@ def train_aa_rnn(seed: int = 0, output=None, quick: bool = False, **options):
 
     Without options: the recipe of the shipped weights,
     :func:`plugins.filters.aa_rnn.dataset_training.run_shipped_recipe` (the paper-scale dataset,
-    made first, then 12 epochs on 826 of its training sequences). With ``-o data=DIR ...``: a
+    made first, then 12 epochs on all 1140 of its training sequences). With ``-o data=DIR ...``: a
     dataset and a training run of those settings,
     :func:`plugins.filters.aa_rnn.dataset_training.run_options`. ``quick``: a run of seconds on a
     few small random scenes (:func:`plugins.filters.aa_rnn.train.train`), for smoke tests; it

@@ -283,7 +283,7 @@ def run_shipped_recipe(seed: int = 0, output=None) -> Path:
 
     The options and dataset settings recorded in :data:`.weights.SHIPPED` (the paper-scale
     dataset in ``datasets/cache/aa_rnn-data``, relative to the working directory, made or
-    finished first: all its 1900 sequences; then 12 epochs on its first 826 training sequences);
+    finished first: all its 1900 sequences; then 12 epochs on all its 1140 training sequences);
     the weights go to ``output``, by default the shipped file, and the checkpoint beside the
     dataset folder (not among the shipped files). Says whether the weights equal the shipped
     ones: they do for the shipped seed where the dataset holds the same Mitsuba scenes and the
