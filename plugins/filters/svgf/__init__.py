@@ -14,7 +14,7 @@ from harness import FilterSpec, hookimpl
 from .params import DECLARED, PRESETS
 from .pipeline import SVGF
 
-VERSION = "1.1"  # 1.1: without motion, the motion of static geometry from the camera (issue 32)
+VERSION = "1.2"  # 1.1: camera motion without motion vectors; 1.2: demodulated and un-demodulated pixels filtered apart
 
 
 def make_filter(backend: str = "cpu", **params) -> SVGF:

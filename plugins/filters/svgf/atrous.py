@@ -90,7 +90,7 @@ def atrous_pixel(i, j, step, sig, var, valid, depth, normal, grad,
         hy = b3_tap(ky)
         for kx in range(-2, 3):
             x = j + kx * step
-            if x < 0 or x >= w or valid[y, x] == 0:
+            if x < 0 or x >= w or valid[y, x] != valid[i, j]:  # background, or the other kind of pixel
                 continue
             geo = hy * b3_tap(kx)
             dist = 0.0

@@ -46,7 +46,8 @@ from .weights import INV_MAX, LUM_MAX, VAR_MAX, b3_tap, expneg, gauss3_tap, neg_
 
 #: pixels of a row filtered together (the accumulators of a chunk stay in L1)
 CHUNK = 256
-#: geometry planes of the pool: surface mask, depth, sigma_z times the depth gradient (x, y),
+#: geometry planes of the pool: surface kind (the ``valid`` code: 0 background, 1 or 2 the two kinds
+#: of surface pixel, :mod:`.modulation`), depth, sigma_z times the depth gradient (x, y),
 #: the depth weight's epsilon (``depth_eps |z|`` + a tiny floor), normal (x, y, z)
 MASK, DEPTH, SLOPE_X, SLOPE_Y, DEPTH_EPS, NORMAL_X, NORMAL_Y, NORMAL_Z = range(8)
 GEOMETRY_PLANES = 8
@@ -161,7 +162,7 @@ def pack_planes(valid, depth, normal, grad, sig, var, sigma_z, depth_eps, halo, 
         for t in range(w):
             j = uint64(t)
             k = row + j
-            planes[uint64(MASK) * ps + k] = np.float32(valid[i, j] != 0)
+            planes[uint64(MASK) * ps + k] = np.float32(valid[i, j])
             planes[uint64(DEPTH) * ps + k] = depth[i, j]
             planes[uint64(SLOPE_X) * ps + k] = min(max(sigma_z * grad[0, i, j], -SLOPE_MAX), SLOPE_MAX)
             planes[uint64(SLOPE_Y) * ps + k] = min(max(sigma_z * grad[1, i, j], -SLOPE_MAX), SLOPE_MAX)
@@ -205,12 +206,12 @@ def _centre_terms(pool, acc, ps, nsig, cb, n, stride, src, sl, le):
             q0 = uint64(np.int64(cb) + dy * stride + dx)
             g = np.float32(gauss3_tap(dy) * gauss3_tap(dx))
             for j in range(n):
-                acc[_OPDEN + j] += g * pool[q0 + j]
+                acc[_OPDEN + j] += g * np.float32(pool[q0 + j] == pool[cb + j])
             for s in range(nsig):
                 ov = uint64(src + s * SIGNAL_PLANES + 3) * ps + q0
                 r = uint64(s) * _SIGNAL_1 + _OLP
                 for j in range(n):
-                    acc[r + j] += g * pool[q0 + j] * pool[ov + j]
+                    acc[r + j] += g * np.float32(pool[q0 + j] == pool[cb + j]) * pool[ov + j]
     for s in range(nsig):
         oc = uint64(src + s * SIGNAL_PLANES) * ps + cb
         r = uint64(s) * _SIGNAL_1
@@ -233,7 +234,7 @@ def _add_centre(pool, acc, r, oc, ps, cb, n, hk):
     o3 = o2 + ps
     for j in range(n):
         p = cb + j
-        m = hk * pool[p]
+        m = hk * np.float32(pool[p] != _ZERO)
         k = r + j
         acc[k + _OW] += m
         acc[k + _OR] += m * pool[oc + p]
@@ -266,8 +267,9 @@ def _pair_geometry(pool, acc, g, ps, cb, qa, qb, n, dxf, dyf, hk, sn):
         inv = _ONE / (abs(pool[osx + p] * dxf + pool[osy + p] * dyf) + pool[oe + p])
         da = nx * pool[onx + a] + ny * pool[ony + a] + nz * pool[onz + a]
         db = nx * pool[onx + b] + ny * pool[ony + b] + nz * pool[onz + b]
-        acc[g + _OMA + j] = hk * pool[a] * np.float32(da > _ZERO)  # the mask is plane 0
-        acc[g + _OMB + j] = hk * pool[b] * np.float32(db > _ZERO)
+        # a tap of the centre's kind only (the kinds are plane 0; background centres have normal 0)
+        acc[g + _OMA + j] = hk * np.float32(pool[a] == pool[p]) * np.float32(da > _ZERO)
+        acc[g + _OMB + j] = hk * np.float32(pool[b] == pool[p]) * np.float32(db > _ZERO)
         acc[g + _ODA + j] = min(abs(zp - pool[oz + a]) * inv, _ARG_MAX) + sn * neg_log_series(da)
         acc[g + _ODB + j] = min(abs(zp - pool[oz + b]) * inv, _ARG_MAX) + sn * neg_log_series(db)
 
@@ -311,7 +313,7 @@ def _write_chunk(pool, acc, ps, nsig, cb, n, dst, store, sig_out, i, xa):
         r = uint64(s) * _SIGNAL_1
         for j in range(n):
             # the centre tap has weight h(0)^2 > 0 on the surface; off it every sum is 0
-            inv = pool[cb + j] / max(acc[r + _OW + j], _TINY)
+            inv = np.float32(pool[cb + j] != _ZERO) / max(acc[r + _OW + j], _TINY)  # 0 on background
             c0 = acc[r + _OR + j] * inv
             c1 = acc[r + _OG + j] * inv
             c2 = acc[r + _OB + j] * inv

@@ -8,6 +8,14 @@ README): a pixel with a negative object id, a non-finite depth, or a zero or non
 is background; non-finite radiance counts as 0; a NaN albedo as 1, a pixel whose albedo is
 below ``UNDEMODULATED_BELOW`` in every component is not demodulated; motion that is not finite
 points outside the image (no history).
+
+The ``valid`` plane says what a pixel is: 0 background, :data:`DEMODULATED` a surface whose
+signals are irradiance (radiance over albedo), :data:`UNDEMODULATED` a surface whose signals are
+radiance. The two kinds never mix: every filter pass (reprojection, the variance estimate, the
+à-trous iterations) takes a neighbour or a history tap only where its kind equals the pixel's.
+Mixed, a radiance pixel would receive its neighbours' irradiance unscaled (remodulated by 1, not
+by their albedo), which can be many times their colour where an albedo component is small (on
+the living room: a black pixel of albedo 0 turned 60 times its neighbourhood's brightest input).
 """
 
 from __future__ import annotations
@@ -29,6 +37,19 @@ ALBEDO_MAX = 1.0
 #: dividing by the floor ``albedo_epsilon`` made that colour 1000 times brighter, spread by the
 #: à-trous passes onto the surfaces around it (see the README)
 UNDEMODULATED_BELOW = 0.01
+#: ``valid`` codes of the two kinds of surface pixel (0 is background)
+DEMODULATED = 1
+UNDEMODULATED = 2
+
+
+@njit(cache=True, inline="always")
+def pixel_kind(surface, largest):
+    """The ``valid`` code of a pixel: 0 where not ``surface``, else :data:`UNDEMODULATED` where its
+    largest albedo component ``largest`` is below :data:`UNDEMODULATED_BELOW`, else
+    :data:`DEMODULATED`."""
+    if not surface:
+        return 0
+    return DEMODULATED if largest >= UNDEMODULATED_BELOW else UNDEMODULATED
 
 
 @njit(cache=True, inline="always")
@@ -99,7 +120,8 @@ def prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in
     n2 = normal_in[i, j, 2]
     ok = (oid >= 0 and math.isfinite(z) and math.isfinite(n0) and math.isfinite(n1) and math.isfinite(n2)
           and (n0 != 0.0 or n1 != 0.0 or n2 != 0.0))
-    valid[i, j] = 1 if ok else 0
+    largest = largest_albedo(albedo_in[i, j, 0], albedo_in[i, j, 1], albedo_in[i, j, 2])
+    valid[i, j] = pixel_kind(ok, largest)
     obj[i, j] = oid
     depth[i, j] = min(max(z, -DEPTH_MAX), DEPTH_MAX) if ok else 0.0
     normal[0, i, j] = min(max(n0, -1.0), 1.0) if ok else 0.0
@@ -109,7 +131,6 @@ def prepare_pixel(i, j, color, indirect, nsig, emission, has_emission, albedo_in
     for k in range(2):
         m = motion_in[i, j, k]
         motion[k, i, j] = min(max(m, -lim), lim) if m == m else lim  # NaN: outside, no history
-    largest = largest_albedo(albedo_in[i, j, 0], albedo_in[i, j, 1], albedo_in[i, j, 2])
     for c in range(3):
         a = demodulation_albedo(albedo_in[i, j, c], largest, albedo_eps)
         albedo[c, i, j] = a

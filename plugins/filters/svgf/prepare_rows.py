@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, uint64
 
-from .modulation import DEPTH_MAX, F32_BIG, demodulation_albedo, largest_albedo
+from .modulation import DEPTH_MAX, F32_BIG, demodulation_albedo, largest_albedo, pixel_kind
 
 
 @njit(cache=True, inline="always")
@@ -40,7 +40,8 @@ def prepare_row(i, color, indirect, nsig, emission, has_emission, albedo_in, nor
         ok = np.int64(oid >= 0) * np.int64(math.isfinite(z)) * np.int64(math.isfinite(n0)) \
             * np.int64(math.isfinite(n1)) * np.int64(math.isfinite(n2)) \
             * np.int64((n0 != 0.0) | (n1 != 0.0) | (n2 != 0.0))
-        valid[i, j] = np.uint8(ok)
+        largest = largest_albedo(albedo_in[i, j, 0], albedo_in[i, j, 1], albedo_in[i, j, 2])
+        valid[i, j] = np.uint8(pixel_kind(ok != 0, largest))
         obj[i, j] = oid
         depth[i, j] = min(max(z, -DEPTH_MAX), DEPTH_MAX) if ok != 0 else 0.0
         normal[0, i, j] = min(max(n0, -1.0), 1.0) if ok != 0 else 0.0

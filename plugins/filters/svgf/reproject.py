@@ -52,11 +52,12 @@ def gradient_pixel(i, j, depth, valid, grad):
 
 
 @njit(cache=True, inline="always")
-def _consistent(y, x, z, ztol, nx, ny, nz, oid, ntol, prev_valid, prev_depth, prev_normal, prev_obj):
-    """Whether tap (y, x) of the previous frame shows the surface of the current pixel."""
+def _consistent(y, x, kind, z, ztol, nx, ny, nz, oid, ntol, prev_valid, prev_depth, prev_normal, prev_obj):
+    """Whether tap (y, x) of the previous frame shows the surface of the current pixel, of the
+    same ``kind`` (its ``valid`` code: demodulated or not, :mod:`.modulation`)."""
     h = prev_depth.shape[0]
     w = prev_depth.shape[1]
-    if y < 0 or y >= h or x < 0 or x >= w or prev_valid[y, x] == 0:
+    if y < 0 or y >= h or x < 0 or x >= w or prev_valid[y, x] != kind:
         return False
     if prev_obj[y, x] != oid or abs(prev_depth[y, x] - z) > ztol:
         return False
@@ -162,7 +163,7 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
             x = x0 + dx
             y = y0 + dy
             wt = (fx if dx == 1 else 1.0 - fx) * (fy if dy == 1 else 1.0 - fy)
-            if wt <= 0.0 or not _consistent(y, x, z, ztol, nx, ny, nz, oid, normal_tol,
+            if wt <= 0.0 or not _consistent(y, x, valid[i, j], z, ztol, nx, ny, nz, oid, normal_tol,
                                             prev_valid, prev_depth, prev_normal, prev_obj):
                 continue
             wsum += wt
@@ -181,7 +182,7 @@ def reproject_pixel(i, j, sig, valid, depth, normal, obj, grad, motion,
             for t in range(9):
                 y = yc + t // 3 - 1
                 x = xc + t % 3 - 1
-                if not _consistent(y, x, z, ztol, nx, ny, nz, oid, normal_tol,
+                if not _consistent(y, x, valid[i, j], z, ztol, nx, ny, nz, oid, normal_tol,
                                    prev_valid, prev_depth, prev_normal, prev_obj):
                     continue
                 wsum += 1.0

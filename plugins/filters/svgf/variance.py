@@ -66,7 +66,7 @@ def variance_pixel(i, j, mom, hist, valid, depth, normal, grad, variance_frames,
                 continue
             for dx in range(-SPATIAL_RADIUS, SPATIAL_RADIUS + 1):
                 x = j + dx
-                if x < 0 or x >= w or valid[y, x] == 0:
+                if x < 0 or x >= w or valid[y, x] != valid[i, j]:  # another surface kind: no weight
                     continue
                 if dx == 0 and dy == 0:
                     wt = 1.0
@@ -85,7 +85,8 @@ def variance_pixel(i, j, mom, hist, valid, depth, normal, grad, variance_frames,
 
 @njit(cache=True, inline="always")
 def prefiltered_variance(var, valid, s, i, j):
-    """3x3 Gaussian blur of signal ``s``'s variance at valid pixel (i, j), over valid neighbours.
+    """3x3 Gaussian blur of signal ``s``'s variance at valid pixel (i, j), over the neighbours of its
+    kind (``valid``: demodulated or not, :mod:`.modulation`).
 
     Parameters
     ----------
@@ -110,7 +111,7 @@ def prefiltered_variance(var, valid, s, i, j):
             continue
         for dx in range(-1, 2):
             x = j + dx
-            if x < 0 or x >= w or valid[y, x] == 0:
+            if x < 0 or x >= w or valid[y, x] != valid[i, j]:
                 continue
             wt = gauss3_tap(dy) * gauss3_tap(dx)
             wsum += wt

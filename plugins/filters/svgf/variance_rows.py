@@ -49,7 +49,7 @@ def _tap_weights(i, y, dx, dy, j0, n, o, valid, depth, normal, cen, sn, region):
         j = uint64(j0) + t
         q = uint64(j0 + dx) + t
         k = o + t
-        m = np.float32(valid[y, q])
+        m = np.float32(valid[y, q] == valid[i, j])  # a neighbour of the centre's kind (never background)
         if centre == 0:
             wt = m
         else:
