@@ -1,8 +1,9 @@
-"""Bit casts between float32 and int32 inside Numba code (an LLVM ``bitcast``: no instruction).
+"""Bit casts between float32 and int32, and from int64 to float64, inside Numba code (an LLVM
+``bitcast``: no instruction).
 
-The fast exponentials and logarithm build and read float32 exponent fields with them; a test of
-the exponent bits also tells a finite float32 from inf and NaN where ``fastmath`` folds
-``math.isfinite`` away.
+The fast exponentials and logarithm build and read float32 exponent fields with them (and a
+float64 exponential its float64 ones); a test of the exponent bits also tells a finite float32
+from inf and NaN where ``fastmath`` folds ``math.isfinite`` away.
 """
 
 from __future__ import annotations
@@ -52,3 +53,25 @@ def float32_bits_as_int32(typingctx, value):
         return builder.bitcast(args[0], context.get_value_type(types.int32))
 
     return types.int32(types.float32), codegen
+
+
+@intrinsic
+def int64_bits_as_float64(typingctx, bits):
+    """Reinterpret the 64 bits of an int64 as a float64.
+
+    Parameters
+    ----------
+    bits : int64
+        Only an int64 is accepted: cast a narrower integer with ``np.int64`` first.
+
+    Returns
+    -------
+    float64
+    """
+    if bits != types.int64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(types.float64))
+
+    return types.float64(types.int64), codegen

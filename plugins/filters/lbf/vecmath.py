@@ -22,8 +22,9 @@ arguments are ``exp(-|a|)`` in (0, 1].
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
-from numba.extending import intrinsic
+from numba import njit
+
+from harness import kernels
 
 #: largest argument of :func:`exp_neg64`: exp(-708) is still a normal float64
 EXP_CLAMP = 708.0
@@ -33,18 +34,6 @@ _LN2_LO = 1.90821492927058770002e-10
 _SQRT2 = 1.4142135623730951
 _TAYLOR = tuple(1.0 / float(np.prod(np.arange(1, k + 1, dtype=np.float64))) for k in range(14))
 _ATANH = tuple(1.0 / (2 * k + 1) for k in range(12))
-
-
-@intrinsic
-def _int64_bits_as_float64(typingctx, bits):
-    """Reinterpret the 64 bits of an int64 as a float64 (an LLVM ``bitcast``)."""
-    if bits != types.int64:
-        return None
-
-    def codegen(context, builder, signature, args):
-        return builder.bitcast(args[0], context.get_value_type(types.float64))
-
-    return types.float64(types.int64), codegen
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -68,7 +57,7 @@ def exp_neg64(y):
     p = p * r + c[2]
     p = p * r + c[1]
     p = p * r + c[0]
-    return p * _int64_bits_as_float64((np.int64(n) + np.int64(1023)) << np.int64(52))
+    return p * kernels.int64_bits_as_float64((np.int64(n) + np.int64(1023)) << np.int64(52))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
