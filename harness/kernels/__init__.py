@@ -8,7 +8,8 @@ them vectorises (this machine's Numba has no SVML: a libm call per element keeps
     :func:`exp_neg` (``exp(-d)``), :func:`exp2_minus` (``2**-t``), :func:`fast_log` (``log x``),
     and their constants ``LOG2E``, ``LN2``, ``EXP_NEG_CLAMP``, ``T_MAX``.
 Bit casts (:mod:`.bits`)
-    :func:`int32_bits_as_float32`, :func:`float32_bits_as_int32`, :func:`int64_bits_as_float64`.
+    :func:`int32_bits_as_float32`, :func:`float32_bits_as_int32`, :func:`int64_bits_as_float64`,
+    :func:`float64_bits_as_int64`.
 Load balancing (:mod:`.schedule`)
     :func:`take` (an atomic task counter), :func:`take_range` and :func:`thread_count` (the
     loop that hands out ranges of rows or pixels from it).
@@ -27,6 +28,7 @@ on this package's source too (:mod:`harness.numba_cache`).
 from harness.backends import BackendHandle
 from harness.kernels.bits import (
     float32_bits_as_int32,
+    float64_bits_as_int64,
     int32_bits_as_float32,
     int64_bits_as_float64,
 )
@@ -46,6 +48,7 @@ __all__ = [
     "exp_neg",
     "fast_log",
     "float32_bits_as_int32",
+    "float64_bits_as_int64",
     "int32_bits_as_float32",
     "int64_bits_as_float64",
     "serial_below",

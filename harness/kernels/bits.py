@@ -1,4 +1,4 @@
-"""Bit casts between float32 and int32, and from int64 to float64, inside Numba code (an LLVM
+"""Bit casts between float32 and int32 and between float64 and int64 inside Numba code (an LLVM
 ``bitcast``: no instruction).
 
 The fast exponentials and logarithm build and read float32 exponent fields with them (and a
@@ -75,3 +75,24 @@ def int64_bits_as_float64(typingctx, bits):
         return builder.bitcast(args[0], context.get_value_type(types.float64))
 
     return types.float64(types.int64), codegen
+
+
+@intrinsic
+def float64_bits_as_int64(typingctx, value):
+    """Reinterpret the 64 bits of a float64 as an int64.
+
+    Parameters
+    ----------
+    value : float64
+
+    Returns
+    -------
+    int64
+    """
+    if value != types.float64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return builder.bitcast(args[0], context.get_value_type(types.int64))
+
+    return types.int64(types.float64), codegen

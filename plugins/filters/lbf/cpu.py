@@ -105,25 +105,54 @@ def _haar(sig, hh, slots):
 
 @njit(cache=True)
 def _vertical7(sig, aux, i, v):
-    """``v[ch, j]``: sums over the clamped rows i-3..i+3 of the signals, squares and aux 0-1."""
+    """``v[ch, j]``: sums over the clamped rows i-3..i+3 of the signals, squares and aux 0-1.
+
+    One pass per channel with the seven rows summed in registers (in the order of the rows,
+    from 0.0, as :func:`.kernels.combine_px` sums them): one store per sum, not seven
+    read-modify-writes of the row of sums.
+    """
     h = sig.shape[1]
     w = sig.shape[2]
-    v[:, :w] = 0.0
-    for di in range(-3, 4):
-        ii = min(max(i + di, 0), h - 1)
-        for ch in range(K.N_SIG):
-            src = sig[ch, ii]
-            s1 = v[ch]
-            s2 = v[K.N_SIG + ch]
-            for j in range(w):
-                x = np.float64(src[j])
-                s1[j] += x
-                s2[j] += x * x
-        a0 = v[2 * K.N_SIG]
-        a1 = v[2 * K.N_SIG + 1]
+    r0 = max(i - 3, 0)
+    r1 = max(i - 2, 0)
+    r2 = max(i - 1, 0)
+    r3 = i
+    r4 = min(i + 1, h - 1)
+    r5 = min(i + 2, h - 1)
+    r6 = min(i + 3, h - 1)
+    for ch in range(K.N_SIG):
+        y0 = sig[ch, r0]
+        y1 = sig[ch, r1]
+        y2 = sig[ch, r2]
+        y3 = sig[ch, r3]
+        y4 = sig[ch, r4]
+        y5 = sig[ch, r5]
+        y6 = sig[ch, r6]
+        s1 = v[ch]
+        s2 = v[K.N_SIG + ch]
         for j in range(w):
-            a0[j] += aux[ii, j, 0]
-            a1[j] += aux[ii, j, 1]
+            x0 = np.float64(y0[j])
+            x1 = np.float64(y1[j])
+            x2 = np.float64(y2[j])
+            x3 = np.float64(y3[j])
+            x4 = np.float64(y4[j])
+            x5 = np.float64(y5[j])
+            x6 = np.float64(y6[j])
+            s1[j] = 0.0 + x0 + x1 + x2 + x3 + x4 + x5 + x6
+            s2[j] = 0.0 + x0 * x0 + x1 * x1 + x2 * x2 + x3 * x3 + x4 * x4 + x5 * x5 + x6 * x6
+    for k in range(2):
+        y0 = aux[r0, :, k]
+        y1 = aux[r1, :, k]
+        y2 = aux[r2, :, k]
+        y3 = aux[r3, :, k]
+        y4 = aux[r4, :, k]
+        y5 = aux[r5, :, k]
+        y6 = aux[r6, :, k]
+        dst = v[2 * K.N_SIG + k]
+        for j in range(w):
+            dst[j] = (0.0 + np.float64(y0[j]) + np.float64(y1[j]) + np.float64(y2[j])
+                      + np.float64(y3[j]) + np.float64(y4[j]) + np.float64(y5[j])
+                      + np.float64(y6[j]))
 
 
 @njit(cache=True)
@@ -133,13 +162,10 @@ def _horizontal7(v, box):
     for ch in range(v.shape[0]):
         src = v[ch]
         dst = box[ch]
-        if w > 6:
-            inner = dst[3:w - 3]
-            inner[:] = 0.0
-            for dj in range(7):
-                part = src[dj:dj + w - 6]
-                for j in range(w - 6):
-                    inner[j] += part[j]
+        if w > 6:  # the seven taps summed in registers, in order from 0.0
+            for j in range(3, w - 3):
+                dst[j] = (0.0 + src[j - 3] + src[j - 2] + src[j - 1] + src[j] + src[j + 1]
+                          + src[j + 2] + src[j + 3])
         for j in list(range(min(3, w))) + list(range(max(w - 3, 3), w)):
             acc = 0.0
             for dj in range(-3, 4):

@@ -32,6 +32,7 @@ _LOG2E = 1.4426950408889634
 _LN2_HI = 6.93147180369123816490e-01  # 0x3fe62e42fee00000: n * _LN2_HI exact for |n| < 2^11
 _LN2_LO = 1.90821492927058770002e-10
 _SQRT2 = 1.4142135623730951
+_ROUND_SHIFT = 6755399441055744.0  # 1.5 * 2**52
 _TAYLOR = tuple(1.0 / float(np.prod(np.arange(1, k + 1, dtype=np.float64))) for k in range(14))
 _ATANH = tuple(1.0 / (2 * k + 1) for k in range(12))
 
@@ -57,7 +58,11 @@ def exp_neg64(y):
     p = p * r + c[2]
     p = p * r + c[1]
     p = p * r + c[0]
-    return p * kernels.int64_bits_as_float64((np.int64(n) + np.int64(1023)) << np.int64(52))
+    # 2**n: n + 1.5 * 2**52 is exact and has n (two's complement) in its low mantissa bits, so
+    # its bits + 1023 shifted left by 52 are the exponent field of 2**n (no float-to-integer
+    # conversion, which AVX2 lacks for float64 and which would keep the loop scalar)
+    bits = kernels.float64_bits_as_int64(n + _ROUND_SHIFT)
+    return p * kernels.int64_bits_as_float64((bits + np.int64(1023)) << np.int64(52))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
