@@ -200,7 +200,9 @@ def _taps9(rm, r0, rp, j, c):
 
 @njit(cache=True, error_model="numpy")
 def _sort2(a, b):
-    return min(a, b), max(a, b)
+    """``min(a, b), max(a, b)`` for values that are not NaN, as plain selects (vectorise)."""
+    lower = a <= b
+    return (a if lower else b), (b if lower else a)
 
 
 @njit(cache=True, error_model="numpy")
@@ -234,8 +236,9 @@ def _row_features(sig, aux, hh, i, box, acc, feat):
 
     The arithmetic of :func:`.kernels.combine_px` in its order (so the values are identical),
     with loops along the row that vectorise; the border columns 0 and ``w - 1`` (clamped
-    windows) are left to the caller. ``box`` holds the 7x7 sums of :func:`_horizontal7`;
-    ``acc`` (6, w) is scratch.
+    windows) are left to the caller. ``hh`` is the planar (5, h, w) Haar detail buffer (rows
+    loaded contiguously), ``box`` holds the 7x7 sums of :func:`_horizontal7`; ``acc`` (6, w) is
+    scratch.
     """
     h = sig.shape[1]
     w = sig.shape[2]
@@ -276,9 +279,9 @@ def _row_features(sig, aux, hh, i, box, acc, feat):
         f10 = feat[10 + g]
         f15 = feat[15 + g]
         f20 = feat[20 + g]
-        hm = hh[im, :, g]
-        h0 = hh[i, :, g]
-        hp = hh[ip, :, g]
+        hm = hh[g, im]
+        h0 = hh[g, i]
+        hp = hh[g, ip]
         for j in range(1, w - 1):
             f0[j] = math.sqrt(v7[j] / n)
             f5[j] = math.sqrt(v3[j] / n)
@@ -355,7 +358,7 @@ def _row_mlp(feat, mean, inv_std, w1, b1, w2, b2, i, z, hidden, a, params):
 
 
 @njit(parallel=True, cache=True)
-def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_out, keep, slots):
+def _features_network(sig, aux, hh, hh_px, mean, inv_std, w1, b1, w2, b2, params, feat_out, keep, slots):
     h = sig.shape[1]
     w = sig.shape[2]
     for s in prange(slots):
@@ -377,7 +380,7 @@ def _features_network(sig, aux, hh, mean, inv_std, w1, b1, w2, b2, params, feat_
             for j in (0, w - 1):
                 for ch in range(K.N_BOX7):
                     col7[ch] = box[ch, j] / 49.0
-                _combine_px(i, j, sig, aux, hh, col7, med, px)
+                _combine_px(i, j, sig, aux, hh_px, col7, med, px)
                 feat[:, j] = px
             if keep:
                 for f in range(K.N_FEATURES):
@@ -595,8 +598,8 @@ class Denoiser:
                  inputs.has_vis, inputs.spp, inputs.has_spp, float(mu[0]), float(mu[1]),
                  float(mu[2]), 1.0 / scale, sp[:, :, pad:pad + w], aux, pad, cp, vp, peaks, slots)
         work["scale"] = _colour_scale(peaks)
-        hh = _buffer(work, "haar", (h, w, 5), np.float32)
-        _haar(sp[:, :, pad:pad + w], hh, slots)
+        hh = _buffer(work, "haar", (5, h, w), np.float32)
+        _haar(sp[:, :, pad:pad + w], hh.transpose(1, 2, 0), slots)
         if self.keep:
             self.last = {"variance": np.array(variance),
                          "sig": np.moveaxis(sp[:, :, pad:pad + w], 0, -1).copy()}
@@ -608,7 +611,7 @@ class Denoiser:
         params = _buffer(self.work, "params", (K.N_OUT, h, w), np.float32)
         feat = np.empty((h, w, K.N_FEATURES), np.float32) if self.keep else \
             np.empty((1, 1, 1), np.float32)
-        _features_network(sig, aux, hh, m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, params, feat,
+        _features_network(sig, aux, hh, hh.transpose(1, 2, 0), m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, params, feat,
                           self.keep, numba.get_num_threads())
         if self.keep:
             self.last["features"] = feat
