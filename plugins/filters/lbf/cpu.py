@@ -95,12 +95,30 @@ def _signals(color, variance, position, normal, albedo, vis, has_vis, spp, has_s
 
 @njit(parallel=True, cache=True)
 def _haar(sig, hh, slots):
+    """``hh[g, i, j]`` (planar): :func:`.kernels.haar_px` with loops along the row that
+    vectorise, in its order of operations (float64 sums; the last column, clamped, by the
+    per-pixel body)."""
     h = sig.shape[1]
     w = sig.shape[2]
+    hh_px = hh.transpose(1, 2, 0)
     for s in prange(slots):
+        acc = np.empty(w)
         for i in range(s, h, slots):
-            for j in range(w):
-                _haar_px(i, j, sig, hh)
+            i1 = min(i + 1, h - 1)
+            for g in range(5):
+                c0 = 3 * g
+                c1 = 13 if g == 4 else 3 * g + 3
+                acc[:] = 0.0
+                for ch in range(c0, c1):
+                    r0 = sig[ch, i]
+                    r1 = sig[ch, i1]
+                    for j in range(w - 1):
+                        a = acc[j] + (np.float64(r0[j]) - np.float64(r0[j + 1]))
+                        acc[j] = a + (np.float64(r1[j + 1]) - np.float64(r1[j]))
+                dst = hh[g, i]
+                for j in range(w - 1):
+                    dst[j] = abs(acc[j]) * 0.5 / (c1 - c0)
+            _haar_px(i, w - 1, sig, hh_px)
 
 
 @njit(cache=True)
@@ -599,7 +617,7 @@ class Denoiser:
                  float(mu[2]), 1.0 / scale, sp[:, :, pad:pad + w], aux, pad, cp, vp, peaks, slots)
         work["scale"] = _colour_scale(peaks)
         hh = _buffer(work, "haar", (5, h, w), np.float32)
-        _haar(sp[:, :, pad:pad + w], hh.transpose(1, 2, 0), slots)
+        _haar(sp[:, :, pad:pad + w], hh, slots)
         if self.keep:
             self.last = {"variance": np.array(variance),
                          "sig": np.moveaxis(sp[:, :, pad:pad + w], 0, -1).copy()}
