@@ -47,7 +47,6 @@ COLOUR_LIMIT = 2.0**100
 VAR_PLANE_MAX = 1e38
 _FLOAT32_MAX = float(np.finfo(np.float32).max)
 
-_signals_px = njit(cache=True)(K.signals_px)
 _haar_px = njit(cache=True)(K.haar_px)
 _combine_px = njit(cache=True)(K.combine_px)
 _color_rows_px = njit(cache=True)(K.color_rows_px)
@@ -73,23 +72,71 @@ def _variance_estimate(rows, r, out, slots):
                 _variance_estimate_px(i, j, rows, r, out)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def _signals(color, variance, position, normal, albedo, vis, has_vis, spp, has_spp, mu0, mu1, mu2,
              inv_scale, sig, aux, pad, cplane, vplane, peaks, slots):
+    """:func:`.kernels.signals_px` row by row, in its arithmetic (the same values), with loops
+    along the row that vectorise; only ``log1p`` (libm) stays a scalar loop of its own. Also
+    writes the filter's colour and variance planes and each row's largest colour magnitude."""
     h, w, _ = color.shape
+    fl = K.FEATURE_LIMIT
+    vmax = K.VAR_MAX
     for s in prange(slots):
+        clip = np.empty((3, w))
+        vs = np.empty(w)
         for i in range(s, h, slots):
             cmax = 0.0
-            for j in range(w):
-                _signals_px(i, j, color, variance, position, normal, albedo, vis, has_vis, spp,
-                            has_spp, mu0, mu1, mu2, inv_scale, sig, aux)
-                for ch in range(3):
+            vs[:] = 0.0
+            for ch in range(3):
+                cl = clip[ch]
+                cp_row = cplane[ch, i, pad:pad + w]
+                vp_row = vplane[ch, i, pad:pad + w]
+                s_n = sig[6 + ch, i]
+                s_a = sig[9 + ch, i]
+                s_p = sig[3 + ch, i]
+                mu = mu0 if ch == 0 else (mu1 if ch == 1 else mu2)
+                for j in range(w):
+                    c = np.float64(color[i, j, ch])
+                    c = c if c > 0.0 else 0.0
+                    cl[j] = min(c, vmax)
+                    v = np.float64(variance[i, j, ch])
+                    v = min(v, vmax) if v > 0.0 else 0.0
+                    vs[j] += v / ((1.0 + c) * (1.0 + c))
+                    x = np.float64(normal[i, j, ch])
+                    s_n[j] = min(max(x, -fl), fl) if x == x else 0.0
+                    x = np.float64(albedo[i, j, ch])
+                    s_a[j] = min(max(x, -fl), fl) if x == x else 0.0
+                    x = (np.float64(position[i, j, ch]) - mu) * inv_scale
+                    s_p[j] = min(max(x, -fl), fl) if x == x else 0.0
+                    # the filter's planes: colour (NaN -> 0, +-Inf -> +-float32 max), variance
                     c = np.float64(color[i, j, ch])
                     c = min(max(c, -_FLOAT32_MAX), _FLOAT32_MAX) if c == c else 0.0
-                    cplane[ch, i, pad + j] = c
-                    v = min(_clean_variance(np.float64(variance[i, j, ch])), VAR_PLANE_MAX)
-                    vplane[ch, i, pad + j] = v
+                    cp_row[j] = c
                     cmax = max(cmax, abs(c))
+                    vp_row[j] = min(_clean_variance(np.float64(variance[i, j, ch])), VAR_PLANE_MAX)
+            for ch in range(3):  # libm's log1p: a call per element
+                cl = clip[ch]
+                dst = sig[ch, i]
+                for j in range(w):
+                    dst[j] = math.log1p(cl[j])
+            s_v = sig[12, i]
+            for j in range(w):
+                fg = 1.0 if (normal[i, j, 0] != 0.0 or normal[i, j, 1] != 0.0
+                             or normal[i, j, 2] != 0.0) else 0.0
+                aux[i, j, 0] = math.sqrt(vs[j] / 3.0)
+                aux[i, j, 1] = fg
+                if not has_vis:
+                    s_v[j] = fg
+            if has_vis:
+                for j in range(w):
+                    x = np.float64(vis[i, j])
+                    s_v[j] = min(max(x, -fl), fl) if x == x else 0.0
+            if has_spp:
+                for j in range(w):
+                    aux[i, j, 2] = 1.0 / max(np.float64(spp[i, j]), 1.0)
+            else:
+                for j in range(w):
+                    aux[i, j, 2] = 1.0
             peaks[i] = cmax
 
 
