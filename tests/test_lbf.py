@@ -456,10 +456,67 @@ def test_row_network_matches_per_pixel_bodies(shape):
     feats, params = _per_pixel_network(sig, aux, hh, m)
     got_p = np.empty_like(params)
     got_f = np.empty_like(feats)
-    CPU._features_network(sig, aux, hh, m.mean, m.inv_std, m.w1, m.b1, m.w2, m.b2, got_p, got_f,
-                          True, 2)
+    hp = np.ascontiguousarray(np.moveaxis(hh, -1, 0))  # the CPU keeps the details planar
+    CPU._features_network(sig, aux, hp, hp.transpose(1, 2, 0), m.mean, m.inv_std, m.w1, m.b1,
+                          m.w2, m.b2, got_p, got_f, True, 2)
     np.testing.assert_array_equal(got_f, feats)
     np.testing.assert_allclose(got_p, params, rtol=2.5e-7, atol=0)  # at most ~1 float32 ulp
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 6), (6, 1), (2, 2), (9, 13), (17, 40)])
+@pytest.mark.parametrize("has_vis, has_spp", [(False, False), (True, True)])
+def test_row_signals_match_per_pixel_bodies(shape, has_vis, has_spp):
+    """The CPU's row kernels of the signals stage (signals, colour and variance planes, Haar
+    details) give the per-pixel bodies' values bit for bit, non-finite and extreme inputs
+    included."""
+    from numba import njit
+
+    h, w = shape
+    rng = np.random.default_rng(h * 100 + w + has_vis)
+    bad = np.array([np.nan, np.inf, -np.inf, -1.0, 0.0, -0.0, 3e38, 1e-40], np.float32)
+
+    def guide(scale):
+        a = (rng.normal(size=(h, w, 3)) * scale).astype(np.float32)
+        mask = rng.random((h, w, 3)) < 0.15
+        a[mask] = rng.choice(bad, size=int(mask.sum()))
+        return a
+
+    color, variance, position, normal, albedo = (guide(s) for s in (2.0, 0.1, 5.0, 1.0, 0.5))
+    normal[rng.random((h, w)) < 0.2] = 0.0  # background
+    color[0, 0] = (np.nan, np.inf, -np.inf)
+    variance[-1, -1] = (np.nan, np.inf, -1.0)
+    vis = rng.uniform(-0.5, 1.5, (h, w)).astype(np.float32) if has_vis else np.zeros((1, 1), np.float32)
+    if has_vis:
+        vis[rng.random((h, w)) < 0.2] = np.nan
+    spp = rng.integers(-2, 64, (h, w)).astype(np.int32) if has_spp else np.ones((1, 1), np.int32)
+    args = (color, variance, position, normal, albedo, vis, has_vis, spp, has_spp, 0.25, -1.0,
+            2.0, 0.5)
+    want_sig = np.zeros((K.N_SIG, h, w), np.float32)
+    want_aux = np.zeros((h, w, 3), np.float32)
+    want_hh = np.zeros((h, w, 5), np.float32)
+    signals, haar = njit(cache=False)(K.signals_px), njit(cache=False)(K.haar_px)
+    for i in range(h):
+        for j in range(w):
+            signals(i, j, *args, want_sig, want_aux)
+    for i in range(h):
+        for j in range(w):
+            haar(i, j, want_sig, want_hh)
+    pad = 2
+    sp = np.zeros((K.N_SIG, h, w + 2 * pad), np.float32)
+    cp, vp = np.zeros((3, h, w + 2 * pad), np.float32), np.zeros((3, h, w + 2 * pad), np.float32)
+    aux, peaks, hh = np.zeros((h, w, 3), np.float32), np.zeros(h), np.zeros((5, h, w), np.float32)
+    CPU._signals(*args, sp[:, :, pad:pad + w], aux, pad, cp, vp, peaks, 2)
+    CPU._haar(sp[:, :, pad:pad + w], hh, 2)
+    assert sp[:, :, pad:pad + w].tobytes() == want_sig.tobytes()
+    assert aux.tobytes() == want_aux.tobytes()
+    assert np.moveaxis(hh, 0, -1).tobytes() == want_hh.tobytes()
+    f32max = np.finfo(np.float32).max
+    want_c = np.where(np.isnan(color), 0.0, np.clip(color, -f32max, f32max))
+    np.testing.assert_array_equal(cp[:, :, pad:pad + w], np.moveaxis(want_c, -1, 0))
+    want_v = np.where(variance > 0, np.minimum(variance, CPU.VAR_PLANE_MAX), 0.0)
+    np.testing.assert_array_equal(vp[:, :, pad:pad + w], np.moveaxis(want_v, -1, 0))
+    np.testing.assert_array_equal(peaks, np.abs(want_c).max(axis=(1, 2)))
+    assert not sp[:, :, :pad].any() and not sp[:, :, pad + w:].any()  # padding untouched
 
 
 def test_median_network_is_the_median():
