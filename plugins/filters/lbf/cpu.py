@@ -1,10 +1,11 @@
-"""LBF on the CPU (Numba): signals, features + network fused per pixel, a vectorised filter.
+"""LBF on the CPU (Numba): signals, features + network fused per row, a vectorised filter.
 
 Stages of :class:`Denoiser`:
 
 ``signals``
     The variance stand-in when the frame carries none, the frame's position scale, the 13
-    planar signals (:func:`.kernels.signals_px`) with the Haar details, and the filter's
+    planar signals with the planar Haar details (:func:`_signals`, :func:`_haar`: the arithmetic
+    of :func:`.kernels.signals_px` and :func:`.kernels.haar_px` row by row), and the filter's
     planar colour and sanitised variance planes, in the passes that read the frame. NaN colour
     is filtered as 0 and +-Inf as +-float32 max (the harness repairs or rejects non-finite
     colour before a filter sees it; this keeps one bad pixel from spreading).
