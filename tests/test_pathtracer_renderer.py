@@ -246,33 +246,3 @@ def test_first_hits_agree_with_raster(name):
     both = same & (b["object_id"] >= 0)
     rel = np.abs(a["depth"][both] - b["depth"][both]) / b["depth"][both]
     assert (rel <= 1e-3).mean() >= 0.995
-
-
-def test_guided_environment_search_finds_the_binary_searchs_index():
-    """The environment map's row and column searched from the guide tables are those of the binary
-    search over the whole cumulative table, for any u (bucket edges and their neighbours too)."""
-    from plugins.renderers.pathtracer.lights import (
-        _guided_search,
-        _search,
-        environment_guides,
-        environment_tables,
-    )
-
-    rng = np.random.default_rng(5)
-    image = rng.exponential(1.0, (16, 40, 3)).astype(np.float32)
-    image[3:6] = 0.0  # dark rows, a single bright texel: runs of equal-ish entries and a steep step
-    image[9, 17] = 5000.0
-    rows, cols = environment_tables(image)
-    guide = environment_guides(rows, cols)
-    h, w = image.shape[:2]
-    buckets = guide.shape[1] - 1
-    edges = np.arange(buckets) / buckets
-    us = np.concatenate([rng.random(400), edges, np.nextafter(edges[1:], 0.0), np.nextafter(edges, 1.0),
-                         rows[:-1], np.nextafter(rows[1:-1], 0.0), [np.nextafter(1.0, 0.0)]])
-    for u in us:
-        assert _guided_search(rows, guide, h, h + 1, u) == _search(rows, 0, h + 1, u)
-        for r in (0, 4, 9, h - 1):
-            assert _guided_search(cols[r], guide, r, w + 1, u) == _search(cols[r], 0, w + 1, u), (u, r)
-    for r in (4, 9):  # the column tables' own entries as u
-        for u in np.concatenate([cols[r, :-1], np.nextafter(cols[r, 1:-1], 0.0)]):
-            assert _guided_search(cols[r], guide, r, w + 1, u) == _search(cols[r], 0, w + 1, u), (u, r)

@@ -99,7 +99,7 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
     node_kind, nf, ni, tables = borrowed(node_kind), borrowed(nf), borrowed(ni), borrowed(tables)
     tex_data, tex_off, tex_w = borrowed(tex_data), borrowed(tex_off), borrowed(tex_w)
     tex_h, tex_uv = borrowed(tex_h), borrowed(tex_uv)
-    emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols, env_guide = lights
+    emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols = lights
     lr = lg = lb = 0.0
     dr = dg = db = 0.0
     vrays = 0
@@ -183,8 +183,7 @@ def trace_sample(key, ray_o, ray_d, tri, b1, b2, geom, mats, lights, lp, eps, ma
             if strategy != BSDF_ONLY and not is_delta(kind):
                 ld, ldist, le, lpdf, ltri = sample_light(
                     uniform(key, base), uniform(key, base + 1), uniform(key, base + 2), p, lp, tri_v, tri_mat,
-                    mat_emit, mat_flags, tri_front, emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols,
-                    env_guide)
+                    mat_emit, mat_flags, tri_front, emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols)
                 if lpdf > 0.0:
                     if bounce == 0:
                         vrays += 1

@@ -6,10 +6,7 @@ sun and environment: ``pi r^2`` times the integral of their radiance over direct
 the radius of the scene's bounding sphere), then a triangle in proportion to its power (area x
 luminance of emission) and a uniform point on it, a uniform direction in the sun's cone, or a
 direction from the environment (piecewise-constant importance sampling of luminance x
-sin(theta) for maps, uniform on the sphere for the constant and sky kinds). A map's row and column
-are found in its cumulative tables by a search that starts from a guide table
-(:func:`environment_guides`): the same row and column as a binary search over the whole table,
-touching two or three cache lines instead of about ten.
+sin(theta) for maps, uniform on the sphere for the constant and sky kinds).
 
 Delta lights (Mitsuba's ``spot``; ``Scene.params["delta_lights"]``) are a point each, of radiant
 intensity ``I f(theta)`` towards a direction at angle ``theta`` from the spot's axis (``f``:
@@ -51,7 +48,6 @@ DELTA_STRIDE = 20
 DELTA_LIGHT = -2  # the "triangle" of a delta light's sample
 ENV_NONE, ENV_CONSTANT, ENV_SKY, ENV_MAP = -1, 0, 1, 2
 MIN_SUN_RADIUS_DEG = 0.01
-GUIDE = 128  # buckets of the environment's guide tables (a power of two: u * GUIDE is exact)
 
 
 @njit(cache=True, error_model="numpy")
@@ -59,23 +55,6 @@ def _search(cdf, lo, hi, u):
     """Index k in [lo, hi - 1) with cdf[k] <= u < cdf[k + 1] (cdf[lo] = 0, cdf[hi - 1] = 1)."""
     a = lo
     b = hi - 1
-    while b - a > 1:
-        m = (a + b) // 2
-        if cdf[m] <= u:
-            a = m
-        else:
-            b = m
-    return a
-
-
-@njit(cache=True, error_model="numpy", inline="always")
-def _guided_search(cdf, guide, g, n, u):
-    """:func:`_search` of ``u`` in the first ``n`` entries of ``cdf`` (the same index), started
-    from the bucket of ``u`` in row ``g`` of ``guide`` (:func:`environment_guides`)."""
-    buckets = guide.shape[1] - 1
-    j = min(max(int(u * buckets), 0), buckets - 1)
-    a = np.int64(guide[g, j])
-    b = min(np.int64(guide[g, j + 1]) + 1, n - 1)
     while b - a > 1:
         m = (a + b) // 2
         if cdf[m] <= u:
@@ -166,9 +145,8 @@ def infinite_radiance_pdf(d, lp, env_img, cdf_rows, cdf_cols):
 
 @njit(cache=True, error_model="numpy", inline="always")
 def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_front, emit_tri, emit_cdf,
-                 tri_light_pdf, env_img, cdf_rows, cdf_cols, env_guide):
-    """Sample a light as seen from point ``p`` (``env_guide``: :func:`environment_guides` of the
-    map's tables).
+                 tri_light_pdf, env_img, cdf_rows, cdf_cols):
+    """Sample a light as seen from point ``p``.
 
     A triangle of a one-sided emitter (``mat_flags & 1``, Mitsuba's ``area``) emits only on the
     side of its normal oriented by ``tri_front`` (the winding normal's sign against the shading
@@ -235,10 +213,10 @@ def sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_fro
         kind = int(lp[ENV_KIND])
         if kind == ENV_MAP:
             h, w = env_img.shape[0], env_img.shape[1]
-            row = _guided_search(cdf_rows, env_guide, h, h + 1, u1)
+            row = _search(cdf_rows, 0, h + 1, u1)
             pr = cdf_rows[row + 1] - cdf_rows[row]
             fv = (u1 - cdf_rows[row]) / pr if pr > 0.0 else 0.5
-            col = _guided_search(cdf_cols[row], env_guide, row, w + 1, u2)
+            col = _search(cdf_cols[row], 0, w + 1, u2)
             pc = cdf_cols[row, col + 1] - cdf_cols[row, col]
             fu = (u2 - cdf_cols[row, col]) / pc if pc > 0.0 else 0.5
             theta = (row + min(max(fv, 0.0), 1.0)) / h * math.pi
@@ -353,29 +331,6 @@ def environment_tables(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     cdf_rows[1:] = np.cumsum(row_sum) / row_sum.sum()
     cdf_rows[-1] = 1.0
     return cdf_rows, cdf_cols
-
-
-def environment_guides(cdf_rows: np.ndarray, cdf_cols: np.ndarray, buckets: int = GUIDE) -> np.ndarray:
-    """Guide tables of :func:`environment_tables`' cumulative tables, for :func:`_guided_search`.
-
-    Entry ``j`` of a table's guide is the last index ``k`` (at most its size - 2) with
-    ``cdf[k] <= j / buckets``: a value ``u`` of bucket ``j`` (``j / buckets <= u < (j + 1) /
-    buckets``) has its index between guide entries ``j`` and ``j + 1`` + 1, so the search starts
-    from a bracket a few entries wide. The tables are non-decreasing (cumulative sums of positive
-    weights), as the binary search needs too.
-
-    Returns
-    -------
-    ndarray (h + 1, buckets + 1) int32
-        Row ``r < h``: the guide of ``cdf_cols[r]``; row ``h``: the guide of ``cdf_rows``.
-    """
-    edges = np.arange(buckets + 1) / buckets
-    h, w1 = cdf_cols.shape
-    guide = np.empty((h + 1, buckets + 1), np.int32)
-    for r in range(h):
-        guide[r] = np.searchsorted(cdf_cols[r, :w1 - 1], edges, side="right") - 1
-    guide[h] = np.searchsorted(cdf_rows[:h], edges, side="right") - 1
-    return guide
 
 
 def luminance_image(image: np.ndarray) -> np.ndarray:

@@ -37,7 +37,7 @@ class SceneData:
     nodes_f, nodes_i : the BVH (see :func:`.bvh.pack_wide`); ``depth`` its number of levels.
     mats : MaterialTables
         Materials and textures (see :mod:`.materials`).
-    emit_tri, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols, env_guide : lights (see :mod:`.lights`).
+    emit_tri, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols : lights (see :mod:`.lights`).
     eps : float
         Ray-origin offset along the geometric normal, relative to the scene's extent.
     """
@@ -59,7 +59,6 @@ class SceneData:
     env_img: np.ndarray
     cdf_rows: np.ndarray
     cdf_cols: np.ndarray
-    env_guide: np.ndarray
     eps: float
 
     @property
@@ -76,19 +75,17 @@ class SceneData:
 
     def lights(self) -> tuple:
         """Light-sampling arrays (``lp`` is passed separately)."""
-        return (self.emit_tri, self.emit_cdf, self.tri_light_pdf, self.env_img, self.cdf_rows, self.cdf_cols,
-                self.env_guide)
+        return (self.emit_tri, self.emit_cdf, self.tri_light_pdf, self.env_img, self.cdf_rows, self.cdf_cols)
 
 
 def _environment(scene: Scene):
     env = scene.environment
     if env is None or env.kind != "map" or env.image is None:
-        rows, cols = np.array([0.0, 1.0]), np.array([[0.0, 1.0]])
-        return np.zeros((1, 1, 3), np.float32), rows, cols, L.environment_guides(rows, cols)
+        return np.zeros((1, 1, 3), np.float32), np.array([0.0, 1.0]), np.array([[0.0, 1.0]])
     img = env.image if isinstance(env.image, np.ndarray) else read_texture(env.image)
     img = np.ascontiguousarray(np.clip(np.nan_to_num(np.asarray(img, np.float32)[..., :3], nan=0.0), 0.0, None))
     rows, cols = L.environment_tables(img)
-    return img, rows, cols, L.environment_guides(rows, cols)
+    return img, rows, cols
 
 
 def _env_integral(scene: Scene, env_img: np.ndarray) -> float:
@@ -163,7 +160,7 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
     emitters = np.flatnonzero((power > 0) & (area > 0)).astype(np.int32)
     tri_power = float(power[emitters].sum())
 
-    env_img, cdf_rows, cdf_cols, env_guide = _environment(scene)
+    env_img, cdf_rows, cdf_cols = _environment(scene)
     lp = np.zeros(L.N_PARAMS)
     lp[L.SUN_COS] = 1.0
     lp[L.ENV_KIND] = L.ENV_NONE
@@ -207,5 +204,4 @@ def build_scene_data(scene: Scene, frame: int) -> SceneData:
         emit_cdf = np.array([0.0, 1.0])
         emitters = np.zeros(1, np.int32)
     return SceneData(tri_v, tri_n, tri_uv, tmat, tobj, tri_front, nodes_f, nodes_i, int(depth), mats,
-                     emitters, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols, env_guide,
-                     eps)
+                     emitters, emit_cdf, tri_light_pdf, lp, env_img, cdf_rows, cdf_cols, eps)
