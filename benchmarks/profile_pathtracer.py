@@ -56,7 +56,7 @@ def light_kernel():
     def kernel(mode, tri, bary, geom, mats, lights, lp, eps, depth):
         tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
         mat_flags, mat_emit = mats[1], mats[2]
-        emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols, env_guide = lights
+        emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols = lights
         stack_n = np.empty(stack_size(depth), np.int32)
         stack_t = np.empty(stack_size(depth), np.float32)
         total = 0.0
@@ -71,8 +71,7 @@ def light_kernel():
                 total += u0 + u1 + u2 + p[0] + ng[0]
                 continue
             ld, _dist, le, pdf, _t = sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_front,
-                                                  emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols,
-                                                  env_guide)
+                                                  emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols)
             total += pdf + le[0] + ld[0]
             if mode == SHADOW and pdf > 0.0:
                 off = eps if ld[0] * ng[0] + ld[1] * ng[1] + ld[2] * ng[2] > 0.0 else -eps
