@@ -2,34 +2,35 @@
 
 Runs ``denoise-bench run`` in this process (``--executor inline``) with the harness's Numba cache
 pointed at an empty temporary folder (``XDG_CACHE_HOME``; the real cache is not touched), records
-every ``numba:compile`` event, and prints per kernel its exclusive compile CPU seconds (process
-CPU time, nested compiles of callees subtracted) and its specializations (signatures), then the seconds per compile unit::
+every ``numba:compile`` event, and prints per kernel its exclusive compile CPU seconds
+(process CPU time, nested compiles of callees subtracted) and its specializations (signatures),
+then the seconds per compile unit::
 
     python benchmarks/compile_profile.py -- --filters eaw --scenes synthetic-moving --timing-at none
 
 Everything after ``--`` goes to ``denoise-bench run`` (``--executor inline --no-cache --out TMP``
-are added). ``--json FILE`` writes the figures as JSON. ``--warm`` reuses the cache folder given by
-``--cache-home`` instead of an empty one (a second, cached run).
+are added). ``--json FILE`` writes the figures as JSON; ``--cache-home DIR`` uses that cache home
+instead of an empty one (e.g. a second, cached run).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
 
+from common import machine_line, parser, run
 
-def main() -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+
+def main(argv=None) -> int:
+    ap = parser(__doc__)
     ap.add_argument("--json", type=Path)
     ap.add_argument("--cache-home", type=Path, help="cache home to use (default: a new empty folder)")
     ap.add_argument("run_args", nargs="*")
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     home = args.cache_home or Path(tempfile.mkdtemp(prefix="compile-profile-"))
     os.environ["XDG_CACHE_HOME"] = str(home)
     os.environ.pop("NUMBA_CACHE_DIR", None)
@@ -59,17 +60,18 @@ def main() -> int:
             sigs[key] = disp
 
     out = Path(tempfile.mkdtemp(prefix="compile-profile-out-"))
-    cpu0, wall0 = time.process_time(), time.perf_counter()
+    cpu0 = time.process_time()
     with event.install_listener("numba:compile", Recorder()):
         rc = cli_main(["run", *args.run_args, "--executor", "inline", "--no-cache", "--out", str(out)])
-    cpu, wall = time.process_time() - cpu0, time.perf_counter() - wall0
+    cpu = time.process_time() - cpu0
     per_unit = defaultdict(float)
     rows = []
     for (unit, name), seconds in sorted(own.items(), key=lambda kv: -kv[1]):
         per_unit[unit] += seconds
         signatures = [str(s) for s in sigs[(unit, name)].signatures]
         rows.append({"unit": unit, "kernel": name, "seconds": round(seconds, 3), "signatures": signatures})
-    print(f"\nrun rc {rc}: {cpu:.1f} CPU-s, {wall:.1f} s wall in this process; compile "
+    print(f"\n{machine_line()}")
+    print(f"run rc {rc}: {cpu:.1f} CPU-s in this process; compile "
           f"{sum(own.values()):.1f} CPU-s in {len(own)} kernels (cache home {home})")
     for unit, seconds in sorted(per_unit.items(), key=lambda kv: -kv[1]):
         print(f"{unit:28s} {seconds:7.1f} s")
@@ -79,9 +81,9 @@ def main() -> int:
         if len(row["signatures"]) > 1:
             print(f"several specializations: {row['kernel']}: {row['signatures']}")
     if args.json:
-        args.json.write_text(json.dumps({"cpu_s": cpu, "wall_s": wall, "units": per_unit, "kernels": rows}, indent=1))
+        args.json.write_text(json.dumps({"cpu_s": cpu, "units": per_unit, "kernels": rows}, indent=1))
     return rc
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run(main)

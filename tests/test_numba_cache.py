@@ -145,7 +145,8 @@ def test_the_notice_estimates_from_the_recorded_compile_times(empty_cache_home, 
     _record(empty_cache_home, "filters.eaw", "0123456789abcdef", 95.4)  # an edit ago: another digest
     _record(empty_cache_home, "filters.svgf", "fedcba9876543210", 61.0)
     line = numba_cache.compile_notice(registry, _plan("eaw", "svgf"))
-    assert line == "compiling kernels of filters.eaw, filters.svgf (first use, about 2.6 min: their last compile on this machine)"
+    assert line == ("compiling kernels of filters.eaw, filters.svgf (first use, about 2.6 min: their last compile "
+                    "on this machine)")
     assert numba_cache.recorded_seconds("filters.eaw") == 95.4
     monkeypatch.setattr(numba_cache, "MEASURED_CPU_S", {})
     line = numba_cache.compile_notice(registry, _plan("eaw", "gaussian"))
