@@ -19,7 +19,12 @@ scene) at 1 spp and times, in one process and taking turns call by call
   the difference to ``paths D`` is what light sampling, the BSDF evaluations and the shadow rays
   cost.
 
-Prints microseconds per pixel for each part and the increments. Traversal alone, per ray, is
+Prints microseconds per pixel for each part and the increments. Then next-event estimation's
+light sample alone (:func:`.lights.sample_light`, single-threaded, from each first hit of the
+frame, one call per hit): nanoseconds per call over the random numbers and the hit's surface that
+it needs, with the scene's light choice, with every sample from the sun, with every sample from
+the environment, and the scene's sample followed by its shadow ray (the any-hit query of the
+integrator, without the BSDF evaluation). Traversal alone, per ray, is
 ``benchmarks/bench_traversal.py``.
 """
 
@@ -33,6 +38,81 @@ from bench_pathtracer import SCENES, harness_scene
 from common import alternate, integer, parser, run
 
 from harness import load_plugins
+
+SURFACE, SAMPLE, SHADOW = 0, 1, 2
+
+
+def light_kernel():
+    """A single-threaded loop over a frame's first hits: random numbers and surface, plus the light
+    sample, plus its shadow ray (``mode``); returns a checksum and the count of occluded samples."""
+    from numba import njit
+
+    from plugins.renderers.pathtracer.integrator import surface
+    from plugins.renderers.pathtracer.lights import sample_light
+    from plugins.renderers.pathtracer.rng import stream_key, uniform
+    from plugins.renderers.pathtracer.traverse import occluded, stack_size
+
+    @njit(error_model="numpy")
+    def kernel(mode, tri, bary, geom, mats, lights, lp, eps, depth):
+        tri_v, tri_n, tri_uv, tri_mat, nodes_f, nodes_i, tri_front = geom
+        mat_flags, mat_emit = mats[1], mats[2]
+        emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols = lights
+        stack_n = np.empty(stack_size(depth), np.int32)
+        stack_t = np.empty(stack_size(depth), np.float32)
+        total = 0.0
+        blocked = 0
+        for i in range(tri.shape[0]):
+            if tri[i] < 0:
+                continue
+            p, ng, _ns, _u, _v = surface(tri[i], bary[i, 0], bary[i, 1], tri_v, tri_n, tri_uv)
+            key = stream_key(1, 0, i, 0)
+            u0, u1, u2 = uniform(key, 0), uniform(key, 1), uniform(key, 2)
+            if mode == SURFACE:
+                total += u0 + u1 + u2 + p[0] + ng[0]
+                continue
+            ld, _dist, le, pdf, _t = sample_light(u0, u1, u2, p, lp, tri_v, tri_mat, mat_emit, mat_flags, tri_front,
+                                                  emit_tri, emit_cdf, tri_light_pdf, env_img, cdf_rows, cdf_cols)
+            total += pdf + le[0] + ld[0]
+            if mode == SHADOW and pdf > 0.0:
+                off = eps if ld[0] * ng[0] + ld[1] * ng[1] + ld[2] * ng[2] > 0.0 else -eps
+                if occluded(p[0] + ng[0] * off, p[1] + ng[1] * off, p[2] + ng[2] * off, ld[0], ld[1], ld[2], np.inf,
+                            tri[i], tri_v, nodes_f, nodes_i, stack_n, stack_t):
+                    blocked += 1
+        return total, blocked
+
+    return kernel
+
+
+def light_sampling(setup, repeats: int) -> None:
+    """Nanoseconds per light sample (and shadow ray) at the first hits of ``setup``'s frame."""
+    import plugins.renderers.pathtracer.lights as L
+
+    data = setup.data
+    kernel = light_kernel()
+    hits = int((setup.tri >= 0).sum())
+    if hits == 0:
+        return
+    lp_sun, lp_env = data.lp.copy(), data.lp.copy()
+    infinite = data.lp[L.P_SUN] + data.lp[L.P_ENV]
+    lp_sun[L.P_SUN], lp_sun[L.P_ENV] = infinite, 0.0
+    lp_env[L.P_SUN], lp_env[L.P_ENV] = 0.0, infinite
+
+    def part(mode, lp):
+        args = (setup.tri, setup.bary, data.geometry(), data.materials(), data.lights(), lp, data.eps, data.depth)
+        return lambda: kernel(mode, *args)
+
+    parts = {"surface": part(SURFACE, data.lp), "light sample": part(SAMPLE, data.lp)}
+    if data.lp[L.P_SUN] > 0.0 and data.lp[L.P_ENV] > 0.0:
+        parts["  all from sun"] = part(SAMPLE, lp_sun)
+        parts["  all from env"] = part(SAMPLE, lp_env)
+    parts["+ shadow ray"] = part(SHADOW, data.lp)
+    ns = {name: statistics.median(v) * 1e6 / hits for name, v in alternate(parts, repeats).cpu_ms.items()}
+    _, blocked = parts["+ shadow ray"]()
+    print(f"\nlight samples at the {hits} first hits (P_tri {data.lp[L.P_TRI]:.2f}, P_sun {data.lp[L.P_SUN]:.2f}, "
+          f"P_env {data.lp[L.P_ENV]:.2f}; {blocked / hits:.0%} occluded); CPU nanoseconds per hit, median of {repeats}")
+    for name, v in ns.items():
+        over = ns["light sample"] if name == "+ shadow ray" else ns["surface"]
+        print(f"{name:<16} {v:7.1f}" + ("" if name == "surface" else f"  +{v - over:.1f}"))
 
 
 def main(argv=None) -> int:
@@ -88,6 +168,7 @@ def main(argv=None) -> int:
     total = us["setup"] + us[deepest]
     print(f"frame (setup + {deepest}) {total:.3f}; setup {us['setup'] / total:.0%}, per-path fixed cost "
           f"{us['paths 1'] / total:.0%}, next-event estimation {(us[deepest] - us[deepest + ', bsdf']) / total:.0%}")
+    light_sampling(setup, args.repeats)
     return 0
 
 

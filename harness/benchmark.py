@@ -68,6 +68,7 @@ def run_benchmark(
     on_executor: Callable[[Any], None] | None = None,
     renderer_settings: Mapping[str, Mapping[str, Any]] | None = None,
     on_note: Callable[[str], None] | None = None,
+    on_used: Callable[[str, str], None] | None = None,
 ) -> RunOutcome:
     """Plan and run a benchmark; store its results in ``out`` and return them.
 
@@ -123,6 +124,8 @@ def run_benchmark(
     on_note : callable, optional
         Called with each one-line note of the scene selection (sub-folders of a root that no
         plugin opens).
+    on_used : callable, optional
+        As :func:`harness.run.run_plan`.
 
     Returns
     -------
@@ -174,7 +177,8 @@ def run_benchmark(
         if on_executor is not None:
             on_executor(started)
         outcome = run_plan(registry, plan, store, started, out, resume=resume, pictures=pictures,
-                           report_frames=report_frames, save_outputs=save_outputs, progress=progress)
+                           report_frames=report_frames, save_outputs=save_outputs, progress=progress,
+                           on_used=on_used)
     outcome.plan, outcome.store = plan, store
     return outcome
 

@@ -24,8 +24,10 @@ by timestamps as usual). Third-party plugins keep Numba's default locators.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import sys
+import time
 from collections.abc import Iterable
 from functools import cache
 from pathlib import Path
@@ -34,6 +36,18 @@ HARNESS = Path(__file__).resolve().parent
 PLUGINS = HARNESS.parent / "plugins"
 #: harness modules a plugin's compiled code may call: part of every plugin's digest
 SHARED_KERNELS = ("kernels.py", "kernels")
+#: the file in a unit's cache folder holding the thread CPU seconds its kernels took to compile
+RECORD = "compile-time.json"
+#: where :data:`MEASURED_CPU_S` was measured
+MEASURED_ON = "CPU seconds measured on a 2-core AMD EPYC"
+#: compile CPU seconds per unit (:data:`RECORD`, thread CPU time) on a first ``denoise-bench run`` on a
+#: 2-core AMD EPYC shared with other work (load average 4-6): the filters in one run of
+#: ``--scenes synthetic-moving --seeds 0 --frames 2 --timing-at none``, the path tracer in one of
+#: ``--filters gaussian --scenes cornell``; the estimate where this machine has recorded none
+MEASURED_CPU_S: dict[str, float] = {
+    "filters.eaw": 78.7, "filters.gaussian": 2.4, "filters.lbf": 35.1, "filters.sbf": 30.2, "filters.svgf": 113.0,
+    "renderers.pathtracer": 308.0,
+}
 
 
 def source_digest(*paths: Path) -> str:
@@ -158,8 +172,8 @@ def uncompiled_units(objects: Iterable[object]) -> list[str]:
     return sorted(missing)
 
 
-def compile_notice(registry, plan) -> str | None:
-    """One line naming the compile units a planned run will compile on first use, or None.
+def plan_units(registry, plan) -> list[str]:
+    """The compile units of a planned run's filters and renderers that hold no compiled kernel yet.
 
     Parameters
     ----------
@@ -174,11 +188,147 @@ def compile_notice(registry, plan) -> str | None:
                 objects.append(registry.get(kind, name).factory)
             except KeyError:
                 continue
-    units = uncompiled_units(objects)
+    return uncompiled_units(objects)
+
+
+def compile_notice(registry, plan) -> str | None:
+    """One line naming the compile units a planned run will compile on first use and how long it takes, or None.
+
+    The estimate is each unit's compile time recorded on this machine (:func:`recorded_seconds`),
+    else the CPU seconds of :data:`MEASURED_CPU_S`; the line says which.
+
+    Parameters
+    ----------
+    registry : harness.plugins.Registry
+    plan : harness.plan.Plan
+        Its jobs' filters and renderers are looked up in ``registry``.
+    """
+    units = plan_units(registry, plan)
     if not units:
         return None
-    return (f"compiling the Numba kernels of {', '.join(units)} on first use (a fresh install or an edit "
-            f"of their source: minutes on 2 cores, once; later runs load them from the cache)")
+    recorded = {u: recorded_seconds(u) for u in units}
+    line = f"compiling kernels of {', '.join(units)} (first use"
+    if all(s is not None for s in recorded.values()):
+        return line + f", about {_seconds(sum(recorded.values()))}: their last compile on this machine)"
+    known = {u: recorded[u] if recorded[u] is not None else MEASURED_CPU_S.get(u) for u in units}
+    unknown = [u for u, s in known.items() if s is None]
+    if len(unknown) == len(units):
+        return line + ", minutes on 2 cores, once)"
+    more = f" plus {', '.join(unknown)}" if unknown else ""
+    return line + (f", about {_seconds(sum(s for s in known.values() if s is not None))}{more}: {MEASURED_ON}, "
+                   f"this machine's last compile where recorded)")
+
+
+def _seconds(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 120 else f"{seconds / 60:.1f} min"
+
+
+def recorded_seconds(unit: str) -> float | None:
+    """The thread CPU seconds of the last compile of a unit's kernels recorded on this machine, or None.
+
+    The newest :data:`RECORD` among the unit's cache folders (any source digest: the last compile
+    before an edit tells how long the next one takes).
+    """
+    records = sorted(cache_home().glob(f"{unit}-*/{RECORD}"), key=lambda p: p.stat().st_mtime)
+    for path in reversed(records):
+        try:
+            return float(json.loads(path.read_text())["cpu_s"])
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return None
+
+
+def compiled_line(unit: str) -> str | None:
+    """``compiled kernels of UNIT in N s`` once the unit's current cache folder holds its record, else None."""
+    unit_paths = _unit_paths(unit)
+    if unit_paths is None:
+        return None
+    path = Path(_unit_folder(unit, unit_paths)[0]) / RECORD
+    try:
+        seconds = float(json.loads(path.read_text())["cpu_s"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return f"compiled kernels of {unit} in {_seconds(seconds)} (CPU)"
+
+
+class CompileProgress:
+    """Says, once per unit, that a unit announced by :func:`compile_notice` has compiled its kernels.
+
+    Parameters
+    ----------
+    registry : harness.plugins.Registry
+    units : iterable of str
+        The units still to compile (:func:`plan_units`).
+    """
+
+    def __init__(self, registry, units: Iterable[str]):
+        self.registry, self.pending = registry, set(units)
+
+    def __call__(self, kind: str, name: str) -> str | None:
+        """The line for a plugin just used (``kind`` ``filter`` or ``renderer``), or None.
+
+        None when its unit was not pending or recorded no compile time (e.g. compiled on another
+        machine of a cluster).
+        """
+        if not self.pending:
+            return None
+        try:
+            factory = self.registry.get(kind, name).factory
+        except KeyError:
+            return None
+        module = sys.modules.get(getattr(factory, "__module__", "") or "")
+        unit = compile_unit(module.__file__) if getattr(module, "__file__", None) else None
+        if unit is None or unit[0] not in self.pending:
+            return None
+        line = compiled_line(unit[0])
+        if line is not None:
+            self.pending.discard(unit[0])
+        return line
+
+
+def _unit_paths(unit: str) -> tuple[Path, ...] | None:
+    """The paths a unit's digest covers, from its name (``filters.eaw``, ``harness``)."""
+    if unit == "harness":
+        return (HARNESS,)
+    kind, _, name = unit.partition(".")
+    for candidate in (PLUGINS / kind / name, PLUGINS / kind / f"{name}.py"):
+        if candidate.exists():
+            return compile_unit(candidate / "__init__.py" if candidate.is_dir() else candidate)[1]
+    return None
+
+
+class _CompileClock:
+    """A Numba ``numba:compile`` listener: each unit's compile CPU time, written to its cache folder.
+
+    The thread CPU time of each outermost compile (callees compiled inside it included) goes to
+    the unit of the function compiled; the unit's total in this process is written to
+    :data:`RECORD` in its current folder after each one. Numba raises the event only for a real
+    compile, not for a kernel loaded from the cache.
+    """
+
+    def __init__(self):
+        self.depth, self.start, self.totals = 0, 0.0, {}
+
+    def on_start(self, event) -> None:
+        if self.depth == 0:
+            self.start = time.thread_time()
+        self.depth += 1
+
+    def on_end(self, event) -> None:
+        self.depth -= 1
+        if self.depth:
+            return
+        func = getattr(event.data.get("dispatcher"), "py_func", None)
+        unit = compile_unit(func.__code__.co_filename) if func is not None else None
+        if unit is None:
+            return
+        folder = Path(_unit_folder(*unit)[0])
+        self.totals[unit[0]] = self.totals.get(unit[0], 0.0) + time.thread_time() - self.start
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            (folder / RECORD).write_text(json.dumps({"cpu_s": round(self.totals[unit[0]], 2)}))
+        except OSError:
+            pass
 
 
 def configure_numba_cache() -> Path | None:
@@ -194,4 +344,15 @@ def configure_numba_cache() -> Path | None:
     locators = caching.CacheImpl._locator_classes
     if not any(cls.__name__ == "UnitCacheLocator" for cls in locators):
         locators.insert(0, _locator_class())
+        _install_clock()
     return cache_home()
+
+
+def _install_clock() -> None:
+    """Register :class:`_CompileClock` for Numba's compile events (once per process)."""
+    from numba.core import event
+
+    clock = _CompileClock()
+    listener = type("UnitCompileClock", (event.Listener,), {"on_start": lambda self, e: clock.on_start(e),
+                                                            "on_end": lambda self, e: clock.on_end(e)})
+    event.register("numba:compile", listener())

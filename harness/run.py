@@ -89,6 +89,7 @@ def run_plan(
     save_outputs: bool = False,
     progress: bool = True,
     on_status: Callable[[str], None] | None = None,
+    on_used: Callable[[str, str], None] | None = None,
 ) -> RunOutcome:
     """Run every job of ``plan`` and store the results in ``out_dir``.
 
@@ -116,6 +117,9 @@ def run_plan(
         Show a progress bar (frames) on standard error.
     on_status : callable, optional
         Receives one-line status messages (what is being rendered or run).
+    on_used : callable, optional
+        Called with ``("renderer", name)`` once a group's inputs are rendered and ``("filter",
+        name)`` once a job has run (e.g. to say that a plugin's kernels are now compiled).
 
     Returns
     -------
@@ -128,6 +132,7 @@ def run_plan(
             clean_temporaries(store.cache.root)
         run = _Run(registry, plan, store, executor, out, resume, pictures, save_outputs, progress, on_status)
         run.report_frames = report_frames
+        run.used = on_used or (lambda kind, name: None)
         return run.execute()
 
 
@@ -137,6 +142,7 @@ class _Run:
         self.out, self.jobs_dir = out, out / "jobs"
         self.resume, self.pictures, self.save_outputs, self.progress = resume, pictures, save_outputs, progress
         self.status = on_status or (lambda text: None)
+        self.used = lambda kind, name: None
         self.tables: dict[str, pd.DataFrame] = {}
         self.reused = self.removed = 0
         self.report_frames = False
@@ -238,6 +244,7 @@ class _Run:
                                                    self.plan.metric_names))
                 bar.update(group.frames)
             return
+        self.used("renderer", group.renderer)
         key = make_key(group=[group.task, group.scene, group.renderer, group.spp, group.seed, sorted(group.channels),
                               group.frames, list(group.resolution), group.reference_spp, pending[0].scene_hash])
         report = self._report_frames(group, inputs)
@@ -256,6 +263,7 @@ class _Run:
                 rows, outputs = job_error_rows(job, outcome.error, frame=min(outcome.progress, group.frames - 1)), {}
                 bar.update(max(group.frames - outcome.progress, 0))
             self._store(job.job_id, make_table(rows, self.plan.metric_names))
+            self.used("filter", job.filter)
             for t in report:
                 if t in outputs:
                     kept.save(self.out, job.task, job.scene, kept.output_name(job), t, outputs[t])

@@ -55,7 +55,9 @@ def test_spec_declares_paper_defaults_and_presets(registry):
     assert spec.full_guides == {"albedo", "normal", "depth", "object_id", "motion"}
     assert spec.params["iterations"] == 5 and spec.params["alpha_color"] == 0.2
     assert spec.params["sigma_z"] == 1.0 and spec.params["sigma_n"] == 128.0 and spec.params["sigma_l"] == 4.0
+    assert spec.params["albedo_epsilon"] == 0.1  # the paper gives none: this implementation's choice
     falcor = spec.presets["falcor"]
+    assert falcor["albedo_epsilon"] == 1e-3
     assert falcor["iterations"] == 4 and falcor["feedback_iteration"] == 1
     assert falcor["alpha_color"] == 0.05 and falcor["sigma_l"] == 10.0 and falcor["history_average"]
     spec.factory(backend="cpu", **falcor)
@@ -316,14 +318,62 @@ def test_pixels_left_undemodulated_do_not_take_their_neighbours_irradiance(regis
 
 
 def test_ordinary_albedo_is_demodulated_as_before(registry):
-    """Pixels with an ordinary albedo are demodulated by it: a noise-free frame whose colour is its
-    albedo times a smooth irradiance comes back within float32 round-off, textured or not."""
+    """Pixels with an albedo at or above ``albedo_epsilon`` (0.1) are demodulated by it: a
+    noise-free frame whose colour is its albedo times a smooth irradiance comes back within
+    float32 round-off, textured or not."""
+    h, w = 12, 14
+    frame = _flat_frame(h, w, 0.5, camera_cut=True)
+    albedo = np.random.default_rng(2).uniform(0.1, 0.9, (h, w, 3)).astype(np.float32)
+    color = (albedo * np.float32(0.8)).astype(np.float32)
+    out = _svgf(registry)(frame.replace(color=color, albedo=albedo))
+    np.testing.assert_allclose(out, color, rtol=1e-5)
+
+
+def test_texels_darker_than_the_floor_keep_a_bounded_error(registry):
+    """Below the floor a texel is demodulated by ``albedo_epsilon``: its irradiance estimate is
+    ``albedo / albedo_epsilon`` of the light, so on the same noise-free frame with texels down to
+    0.02 the output moves off the colour by at most ``albedo_epsilon`` times the irradiance (and
+    brighter texels by their share of the darker ones' underestimate)."""
     h, w = 12, 14
     frame = _flat_frame(h, w, 0.5, camera_cut=True)
     albedo = np.random.default_rng(2).uniform(0.02, 0.9, (h, w, 3)).astype(np.float32)
     color = (albedo * np.float32(0.8)).astype(np.float32)
     out = _svgf(registry)(frame.replace(color=color, albedo=albedo))
-    np.testing.assert_allclose(out, color, rtol=1e-5)
+    assert np.abs(out - color).max() <= 0.1 * 0.8
+    dark = albedo < 0.1
+    assert np.abs(out - color)[dark].max() > 1e-3  # the floor does act there
+    np.testing.assert_allclose(_svgf(registry, albedo_epsilon=0.02)(frame.replace(color=color, albedo=albedo)),
+                               color, rtol=1e-5)
+
+
+def _dark_highlight_frame(k, h=24, w=32):
+    """A diffuse surface (albedo 0.6, irradiance 1) with near-black texels (albedo 0.012, above
+    the 0.01 below which pixels are not demodulated) that carry a glossy highlight 10 times the
+    surface's colour: the living room's dark wood (issue 32), where the albedo explains 1 % of
+    the colour."""
+    rng = np.random.default_rng(30 + k)
+    frame = _flat_frame(h, w, 0.5, camera_cut=k == 0)
+    albedo = np.full((h, w, 3), 0.6, np.float32)
+    color = (0.6 * rng.exponential(1.0, (h, w, 1)) * np.ones(3)).astype(np.float32)
+    dark = rng.random((h, w)) < 0.1
+    albedo[dark] = 0.012
+    color[dark] = 6.0
+    return frame.replace(color=color, albedo=albedo)
+
+
+def test_a_highlight_on_a_near_black_texel_is_not_amplified(registry):
+    """With the floor at 1e-3 a highlight on a texel of albedo 0.012 became an irradiance 83 times
+    its colour, remodulated by its neighbours' 0.6: outputs beyond twice the input's maximum. The
+    floor 0.1 bounds that factor by 10 (times the neighbour's albedo)."""
+    for params, bounded in (({}, True), ({"albedo_epsilon": 1e-3}, False)):
+        filt = _svgf(registry, **params)
+        peaks = []
+        for k in range(3):
+            frame = _dark_highlight_frame(k)
+            out = filt(frame)
+            assert np.all(np.isfinite(out))
+            peaks.append(out.max() / frame["color"].max())
+        assert (max(peaks) <= 2.0) == bounded, (params, peaks)
 
 
 def test_colour_is_the_authority_over_direct(registry, renderer):

@@ -25,7 +25,7 @@ from harness.executors import DEFAULT_TIMEOUT_S, make_executor
 from harness.executors.base import PluginOptions
 from harness.lock import output_folder
 from harness.manifest import read_manifest
-from harness.numba_cache import compile_notice
+from harness.numba_cache import CompileProgress, compile_notice, plan_units
 from harness.pareto import (
     DEFAULT_BUDGETS,
     best_within,
@@ -112,7 +112,9 @@ def cmd_run(registry, args) -> int:
         return _run(registry, args)
 
 
-def _announce(registry, args):
+def _announce(registry, args, compiled: list):
+    """The run's ``on_plan``: prints the plan's estimate, notes and compile notice; the units it will
+    compile go to ``compiled`` (a :class:`CompileProgress` appended there)."""
     def show(plan, specs) -> None:
         estimate = plan.settings.get("estimate", {}).get("announcement")
         if estimate:
@@ -122,6 +124,7 @@ def _announce(registry, args):
         compiling = compile_notice(registry, plan)
         if compiling:
             print(f"denoise-bench run: {compiling}", file=sys.stderr)
+            compiled.append(CompileProgress(registry, plan_units(registry, plan)))
         print(f"denoise-bench run: profile {args.profile}, {len(plan.jobs)} jobs on {len(specs)} scene(s), "
               f"{len(plan.skipped)} skipped; results in {args.out}", file=sys.stderr)
 
@@ -175,7 +178,20 @@ def _selection(registry, args, store, tasks, profile) -> list:
     return specs
 
 
+def _compiled(progress: list):
+    """The run's ``on_used``: one line as each announced unit finishes compiling (above the progress bar)."""
+    def used(kind: str, name: str) -> None:
+        line = progress[0](kind, name) if progress else None
+        if line:
+            from tqdm.auto import tqdm
+
+            tqdm.write(f"denoise-bench run: {line}", file=sys.stderr)
+
+    return used
+
+
 def _run(registry, args) -> int:
+    compiling: list = []
     outcome = run_benchmark(
         out=args.out, registry=registry, profile=args.profile, task=args.task, scenes=args.scenes,
         scene_dirs=args.scene_dir, filters=args.filters, metrics=args.metrics, renderer=args.renderer,
@@ -187,7 +203,8 @@ def _run(registry, args) -> int:
         disable=args.disable, cache_dir=args.cache_dir, use_cache=not args.no_cache, max_hours=args.max_hours,
         resume=args.resume,
         pictures=args.pictures, report_frames=args.report, save_outputs=args.save_outputs,
-        progress=_progress(args), on_plan=_announce(registry, args), on_executor=_banner,
+        progress=_progress(args), on_plan=_announce(registry, args, compiling), on_executor=_banner,
+        on_used=_compiled(compiling),
         scene_roots=_scene_roots(args), renderer_settings=_renderer_settings(registry, args), on_note=_note,
     )
     df, store, plan = outcome.table, outcome.store, outcome.plan

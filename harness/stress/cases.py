@@ -52,6 +52,10 @@ SIZE = (24, 20)
 STATIC_FRAMES, STATIC_SIZE = 1000, (40, 48)
 #: 4K UHD (height, width)
 UHD = (2160, 3840)
+#: the albedo of ``guide-albedo-dark-highlight``'s pixels: a near-black diffuse reflectance, just
+#: above the 0.01 below which a filter may leave a pixel un-demodulated (the living room's dark
+#: wood, where a glossy highlight is 100-1000 times its albedo times the light)
+DARK_TINT = (0.012, 0.011, 0.0105)
 
 
 @dataclass(frozen=True)
@@ -219,6 +223,18 @@ def _conductor(channels, t):
     return frame.replace(albedo=albedo)
 
 
+def _dark_highlights(channels, t):
+    frame = _scene(channels, t)
+    if "albedo" not in frame:
+        return frame
+    mask = scattered(*frame.shape, 0.1, seed=t)
+    albedo = np.array(frame["albedo"], copy=True)
+    albedo[mask] = DARK_TINT
+    color = np.array(frame["color"], copy=True)
+    color[mask] = np.abs(color).max()
+    return with_color(frame.replace(albedo=albedo), color)
+
+
 def _all_background(channels, t):
     frame = _scene(channels, t, noise=False)
     frame = with_background(frame, np.ones(frame.shape, bool))
@@ -339,6 +355,9 @@ def _battery() -> list[StressCase]:
                    _guide("albedo", 0.0, "all"), channel="albedo"),
         StressCase("guide-albedo-conductor", "guide", "albedo 0 on one surface whose colour is not (a renderer's "
                    "albedo on conductors)", _each(_conductor), channel="albedo"),
+        StressCase("guide-albedo-dark-highlight", "guide", "10% of pixels with a near-black albedo "
+                   f"{DARK_TINT} and the frame's brightest colour (a highlight the albedo does not explain)",
+                   _each(_dark_highlights), channel="albedo"),
         StressCase("guide-variance-negative", "guide", "5% of pixels with variance -1",
                    _guide("variance", -1.0), channel="variance"),
         StressCase("guide-motion-outside", "guide", "every motion vector (1e6, -1e6) pixels, far outside the image",

@@ -14,7 +14,7 @@ from harness import FilterSpec, hookimpl
 from .params import DECLARED, PRESETS
 from .pipeline import SVGF
 
-VERSION = "1.2"  # 1.1: camera motion without motion vectors; 1.2: demodulated and un-demodulated pixels filtered apart
+VERSION = "1.3"  # 1.1: camera motion without motion vectors; 1.2: demodulated and un-demodulated pixels filtered apart; 1.3: demodulation floor 0.1
 
 
 def make_filter(backend: str = "cpu", **params) -> SVGF:

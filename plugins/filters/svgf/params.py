@@ -29,7 +29,7 @@ PAPER = {
     "sigma_z": 1.0,
     "sigma_n": 128.0,
     "sigma_l": 4.0,
-    "albedo_epsilon": 1e-3,
+    "albedo_epsilon": 0.1,
     "depth_tolerance": 0.05,
     "normal_tolerance": 0.9,
     "depth_epsilon": 1e-3,
@@ -37,7 +37,7 @@ PAPER = {
 }
 
 #: The widely used variant (4 iterations, history from the 2nd, colour alpha 0.05, sigma_l 10,
-#: blend max(alpha, 1/history_length) with history capped at 32).
+#: blend max(alpha, 1/history_length) with history capped at 32, demodulation floor 0.001).
 FALCOR = {
     "iterations": 4,
     "feedback_iteration": 1,
@@ -46,6 +46,7 @@ FALCOR = {
     "history_average": True,
     "max_history": 32.0,
     "sigma_l": 10.0,
+    "albedo_epsilon": 1e-3,
 }
 
 PRESETS = {"paper": dict(PAPER), "falcor": {**PAPER, **FALCOR}}
@@ -97,7 +98,9 @@ class SVGFParams:
     sigma_z, sigma_n, sigma_l : float
         Edge-stopping parameters of depth, normal and luminance.
     albedo_epsilon : float
-        Demodulation divides by ``max(albedo, albedo_epsilon)``.
+        Demodulation divides by ``max(albedo, albedo_epsilon)`` (the paper gives no floor; 0.1 bounds
+        what a highlight on a near-black texel, which the albedo does not explain, brings to its
+        neighbours: at most ``1 / albedo_epsilon`` times its colour; see the README).
     depth_tolerance : float
         Relative depth difference allowed between a pixel and a reprojected tap.
     normal_tolerance : float
