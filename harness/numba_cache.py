@@ -141,6 +141,12 @@ def _asks_for_cache(paths: tuple[Path, ...]) -> bool:
     return any("cache=True" in f.read_text(errors="replace") for f in files)
 
 
+def _unit_of(obj) -> tuple[str, tuple[Path, ...]] | None:
+    """The compile unit of the module that defines ``obj`` (:func:`compile_unit`), or None."""
+    module = sys.modules.get(getattr(obj, "__module__", "") or "")
+    return compile_unit(module.__file__) if getattr(module, "__file__", None) else None
+
+
 def uncompiled_units(objects: Iterable[object]) -> list[str]:
     """Compile units that will compile Numba kernels when ``objects`` are first used.
 
@@ -162,8 +168,7 @@ def uncompiled_units(objects: Iterable[object]) -> list[str]:
         return []
     missing = set()
     for obj in objects:
-        module = sys.modules.get(getattr(obj, "__module__", "") or "")
-        unit = compile_unit(module.__file__) if getattr(module, "__file__", None) else None
+        unit = _unit_of(obj)
         if unit is None or unit[0] in missing or not _asks_for_cache(unit[1]):
             continue
         folder = Path(_unit_folder(*unit)[0])
@@ -238,17 +243,20 @@ def recorded_seconds(unit: str) -> float | None:
     return None
 
 
-def compiled_line(unit: str) -> str | None:
-    """``compiled kernels of UNIT in N s`` once the unit's current cache folder holds its record, else None."""
-    unit_paths = _unit_paths(unit)
-    if unit_paths is None:
-        return None
-    path = Path(_unit_folder(unit, unit_paths)[0]) / RECORD
+def compiled_line(name: str, paths: tuple[Path, ...]) -> str | None:
+    """``compiled kernels of NAME in N s`` once the unit's current cache folder holds its record, else None.
+
+    Parameters
+    ----------
+    name, paths : str, tuple of pathlib.Path
+        The unit, as :func:`compile_unit` gives it.
+    """
+    path = Path(_unit_folder(name, paths)[0]) / RECORD
     try:
         seconds = float(json.loads(path.read_text())["cpu_s"])
     except (OSError, ValueError, KeyError, TypeError):
         return None
-    return f"compiled kernels of {unit} in {_seconds(seconds)} (CPU)"
+    return f"compiled kernels of {name} in {_seconds(seconds)} (CPU)"
 
 
 class CompileProgress:
@@ -273,28 +281,15 @@ class CompileProgress:
         if not self.pending:
             return None
         try:
-            factory = self.registry.get(kind, name).factory
+            unit = _unit_of(self.registry.get(kind, name).factory)
         except KeyError:
             return None
-        module = sys.modules.get(getattr(factory, "__module__", "") or "")
-        unit = compile_unit(module.__file__) if getattr(module, "__file__", None) else None
         if unit is None or unit[0] not in self.pending:
             return None
-        line = compiled_line(unit[0])
+        line = compiled_line(*unit)
         if line is not None:
             self.pending.discard(unit[0])
         return line
-
-
-def _unit_paths(unit: str) -> tuple[Path, ...] | None:
-    """The paths a unit's digest covers, from its name (``filters.eaw``, ``harness``)."""
-    if unit == "harness":
-        return (HARNESS,)
-    kind, _, name = unit.partition(".")
-    for candidate in (PLUGINS / kind / name, PLUGINS / kind / f"{name}.py"):
-        if candidate.exists():
-            return compile_unit(candidate / "__init__.py" if candidate.is_dir() else candidate)[1]
-    return None
 
 
 class _CompileClock:
